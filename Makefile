@@ -1,0 +1,48 @@
+# Developer and CI entry points. Everything runs from the project's own .venv,
+# which `venv` builds from requirements.txt (PyPI only) on a fresh clone.
+
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+# Python 3.11 is what Blender 4.2-5.0 and the pip `bpy` wheel use.
+PYTHON311 := $(shell \
+	if command -v python3.11 >/dev/null 2>&1; then echo python3.11; \
+	elif python3 -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null; \
+	then echo python3; fi)
+
+.PHONY: venv test lint demo bench clean
+
+# Internal: (re)install only when requirements.txt or pyproject.toml change.
+venv: $(STAMP)
+
+$(STAMP): requirements.txt pyproject.toml
+	@if [ ! -x $(PY) ]; then \
+		if [ -z "$(PYTHON311)" ]; then \
+			echo "error: Python 3.11 is needed (python3.11, or python3 being 3.11)" >&2; \
+			exit 1; \
+		fi; \
+		echo "creating $(VENV) with $(PYTHON311)"; \
+		$(PYTHON311) -m venv $(VENV); \
+	fi
+	$(PY) -m pip install --disable-pip-version-check -r requirements.txt
+	$(PY) -m pip install --disable-pip-version-check -e . --no-deps
+	@touch $@
+
+test: venv
+	$(VENV)/bin/ruff check .
+	$(PY) -m pytest -q
+
+lint: venv
+	$(VENV)/bin/ruff check .
+
+demo: venv
+	$(PY) bench/demo.py
+
+bench: venv
+	$(PY) bench/run_all.py
+
+# Removes the environment and caches; keeps bench/results and .cache/ (data).
+clean:
+	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -1,0 +1,16 @@
+"""``make bench``: every benchmark in turn; results land in ``bench/results/``."""
+
+from __future__ import annotations
+
+import sys
+
+import core_bench
+
+
+def main() -> int:
+    core_bench.main(sys.argv[1:])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

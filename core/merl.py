@@ -1,0 +1,334 @@
+"""The MERL tabulated isotropic BRDF: file format, half/difference angles, bins, lookup.
+
+A table is a ``(3, 90, 90, 180)`` float64 array indexed ``(channel, theta_h bin,
+theta_d bin, phi_d bin)`` holding the BRDF in 1/sr; ``NaN`` marks an unmeasured
+cell. On disk (Matusik et al. 2003) a file is three little-endian int32
+``(90, 90, 180)`` followed by 3 x 1,458,000 little-endian float64, one whole block
+per channel (R, G, B), ``phi_d`` fastest; stored values times ``SCALE`` give 1/sr and
+negative stored values mean "not measured" (METHOD.md §1).
+
+Angles follow Rusinkiewicz (1998) in the local shading frame (normal = +z):
+``h = normalize(wi + wo)``, ``theta_h = acos(h_z)``; ``d`` is ``wi`` rotated about z by
+``-phi_h`` then about y by ``-theta_h``; ``theta_d = acos(d_z)``,
+``phi_d = atan2(d_y, d_x)`` folded to ``[0, pi)`` by reciprocity (swapping wi and wo
+adds pi to phi_d).
+
+Bins (the reference reader): ``ith = floor(90 sqrt(theta_h / (pi/2)))``,
+``itd = floor(90 theta_d / (pi/2))``, ``ipd = floor(180 phi_d / pi)``, each clamped.
+A bin's representative angle, used to generate tables and for trilinear
+interpolation, is its centre: ``theta_h = ((i + 0.5) / 90)^2 pi/2`` (the centre in
+the square-root coordinate), ``theta_d = (i + 0.5) / 90 * pi/2``,
+``phi_d = (i + 0.5) / 180 * pi``; these map back to bin ``i`` exactly.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+
+import numpy as np
+
+SHAPE = (90, 90, 180)
+N_CELLS = SHAPE[0] * SHAPE[1] * SHAPE[2]  # 1,458,000 cells per channel
+SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])  # stored -> 1/sr, R G B
+FILE_SIZE = 3 * 4 + 3 * N_CELLS * 8  # 34,992,012 bytes
+_HALF_PI = np.pi / 2.0
+
+
+# ----------------------------------------------------------------------------- file I/O
+def read(path: str | os.PathLike) -> np.ndarray:
+    """Read a MERL ``.binary`` file.
+
+    Returns ``(3, 90, 90, 180)`` float64 in 1/sr, NaN where the file stores a
+    negative (unmeasured) value. Raises ``ValueError`` naming the file when the
+    header, the size or the values are wrong, ``FileNotFoundError`` when missing.
+    """
+    path = os.fspath(path)
+    with open(path, "rb") as f:
+        raw = f.read()
+    if len(raw) < 12:
+        raise ValueError(f"{path}: not a MERL BRDF file (only {len(raw)} bytes, no header)")
+    dims = tuple(int(x) for x in np.frombuffer(raw[:12], dtype="<i4"))
+    if dims != SHAPE:
+        raise ValueError(f"{path}: MERL header gives dimensions {dims}, expected {SHAPE}")
+    if len(raw) != FILE_SIZE:
+        what = "truncated" if len(raw) < FILE_SIZE else "too long"
+        raise ValueError(
+            f"{path}: MERL file is {what}: {len(raw)} bytes, expected {FILE_SIZE}"
+        )
+    stored = np.frombuffer(raw, dtype="<f8", offset=12).reshape(3, *SHAPE)
+    if not np.all(np.isfinite(stored)):
+        raise ValueError(f"{path}: MERL file holds NaN or Inf values")
+    table = stored * SCALE[:, None, None, None]
+    table[stored < 0] = np.nan
+    return table
+
+
+def _stored_values(table: np.ndarray) -> np.ndarray:
+    """1/sr -> stored doubles, choosing for each value a stored double that reads back
+    to exactly that value when one exists (the scales are not powers of two, so the
+    plain quotient is sometimes one ulp off). NaN -> -1."""
+    scale = SCALE[:, None, None, None]
+    q = table / scale
+    for direction in (np.inf, -np.inf):
+        miss = (q * scale != table) & np.isfinite(table)
+        if not miss.any():
+            break
+        alt = np.nextafter(q, direction)
+        q = np.where(miss & (alt * scale == table), alt, q)
+    return np.where(np.isnan(table), -1.0, q)
+
+
+def write(path: str | os.PathLike, table: np.ndarray) -> None:
+    """Write a ``(3, 90, 90, 180)`` table in 1/sr to a MERL ``.binary`` file.
+
+    NaN cells are written as -1 (unmeasured). ``read(write(t))`` reproduces ``t``
+    bit for bit whenever ``t`` lies on the format's value grid (every table that
+    was read from a file does) and to within one ulp otherwise. Raises
+    ``ValueError`` for a wrong shape, Inf, or negative values.
+    """
+    table = np.asarray(table, dtype=np.float64)
+    if table.shape != (3, *SHAPE):
+        raise ValueError(f"table must have shape (3, 90, 90, 180), got {table.shape}")
+    if np.isinf(table).any():
+        raise ValueError("table holds Inf; a MERL file can only mark cells unmeasured (NaN)")
+    if (table < 0).any():
+        raise ValueError("table holds negative BRDF values")
+    with open(os.fspath(path), "wb") as f:
+        f.write(np.asarray(SHAPE, dtype="<i4").tobytes())
+        f.write(_stored_values(table).astype("<f8").tobytes())
+
+
+# ------------------------------------------------------------------------ angle mapping
+def half_diff_from_dirs(wi: np.ndarray, wo: np.ndarray):
+    """Rusinkiewicz angles of local-frame direction pairs.
+
+    wi, wo: (N, 3) unit vectors, local frame (normal +z); wi is the light.
+    Returns theta_h, theta_d, phi_d: (N,) float64 radians, phi_d folded to [0, pi).
+    Defined everywhere: when wi = -wo the half vector falls back to +z.
+    """
+    wi = np.asarray(wi, dtype=np.float64)
+    wo = np.asarray(wo, dtype=np.float64)
+    h = wi + wo
+    norm = np.linalg.norm(h, axis=-1, keepdims=True)
+    degenerate = norm[..., 0] < 1e-12
+    h = np.where(degenerate[..., None], (0.0, 0.0, 1.0), h / np.maximum(norm, 1e-300))
+    theta_h = np.arccos(np.clip(h[..., 2], -1.0, 1.0))
+    phi_h = np.arctan2(h[..., 1], h[..., 0])
+    # d = Ry(-theta_h) Rz(-phi_h) wi
+    cp, sp = np.cos(phi_h), np.sin(phi_h)
+    ux = cp * wi[..., 0] + sp * wi[..., 1]
+    uy = -sp * wi[..., 0] + cp * wi[..., 1]
+    uz = wi[..., 2]
+    ct, st = np.cos(theta_h), np.sin(theta_h)
+    dx = ct * ux - st * uz
+    dz = st * ux + ct * uz
+    theta_d = np.arccos(np.clip(dz, -1.0, 1.0))
+    phi_d = np.arctan2(uy, dx)
+    phi_d = np.where(phi_d < 0.0, phi_d + np.pi, phi_d)
+    phi_d = np.where(phi_d >= np.pi, 0.0, phi_d)  # -0.0 + pi rounds to pi: same direction
+    return theta_h, theta_d, phi_d
+
+
+def dirs_from_half_diff(theta_h, theta_d, phi_d):
+    """Inverse of :func:`half_diff_from_dirs` with phi_h = 0.
+
+    Angles: arrays (N,) radians. Returns wi, wo: (N, 3) unit vectors in the local
+    frame (normal +z); directions may lie below the horizon.
+    """
+    theta_h, theta_d, phi_d = np.broadcast_arrays(
+        *(np.asarray(a, dtype=np.float64) for a in (theta_h, theta_d, phi_d))
+    )
+    st_d = np.sin(theta_d)
+    d = np.stack([st_d * np.cos(phi_d), st_d * np.sin(phi_d), np.cos(theta_d)], axis=-1)
+    ct, st = np.cos(theta_h), np.sin(theta_h)
+
+    def rot_y(u):  # Ry(theta_h) u
+        return np.stack(
+            [ct * u[..., 0] + st * u[..., 2], u[..., 1], -st * u[..., 0] + ct * u[..., 2]],
+            axis=-1,
+        )
+
+    wi = rot_y(d)
+    wo = rot_y(d * (-1.0, -1.0, 1.0))  # d reflected about the half vector
+    return wi, wo
+
+
+def cells_from_angles(theta_h, theta_d, phi_d) -> np.ndarray:
+    """Bin indices (N, 3) int64 ``(ith, itd, ipd)`` of half/difference angles (radians).
+
+    Uses the reference reader's mapping, clamped to the grid; phi_d is folded to
+    [0, pi) first, and phi_d = 0 falls in bin 0.
+    """
+    theta_h = np.asarray(theta_h, dtype=np.float64)
+    theta_d = np.asarray(theta_d, dtype=np.float64)
+    phi_d = np.mod(np.asarray(phi_d, dtype=np.float64), np.pi)
+    ith = np.floor(90.0 * np.sqrt(np.clip(theta_h, 0.0, None) / _HALF_PI))
+    itd = np.floor(theta_d / _HALF_PI * 90.0)
+    ipd = np.floor(phi_d / np.pi * 180.0)
+    return np.stack(
+        [
+            np.clip(ith, 0, SHAPE[0] - 1),
+            np.clip(itd, 0, SHAPE[1] - 1),
+            np.clip(ipd, 0, SHAPE[2] - 1),
+        ],
+        axis=-1,
+    ).astype(np.int64)
+
+
+def angles_from_cells(cells: np.ndarray):
+    """Centre angles (radians) of bins ``cells`` (N, 3) int: theta_h, theta_d, phi_d (N,)."""
+    cells = np.asarray(cells)
+    theta_h = ((cells[..., 0] + 0.5) / SHAPE[0]) ** 2 * _HALF_PI
+    theta_d = (cells[..., 1] + 0.5) / SHAPE[1] * _HALF_PI
+    phi_d = (cells[..., 2] + 0.5) / SHAPE[2] * np.pi
+    return theta_h, theta_d, phi_d
+
+
+def cells_from_dirs(wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+    """Bin indices (N, 3) of local-frame light/view pairs (N, 3)."""
+    return cells_from_angles(*half_diff_from_dirs(wi, wo))
+
+
+def linear_index(cells: np.ndarray) -> np.ndarray:
+    """Flat cell index ``ipd + 180 (itd + 90 ith)`` of bins (N, 3) -> (N,) int64."""
+    cells = np.asarray(cells, dtype=np.int64)
+    return cells[..., 2] + SHAPE[2] * (cells[..., 1] + SHAPE[1] * cells[..., 0])
+
+
+def cells_from_linear(index: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`linear_index`: (N,) int -> (N, 3) int64."""
+    return np.stack(np.unravel_index(np.asarray(index, dtype=np.int64), SHAPE), axis=-1)
+
+
+@functools.lru_cache(maxsize=1)
+def cell_directions():
+    """Light and view directions at every cell centre, C order of (90, 90, 180).
+
+    Returns wi, wo: (1458000, 3) float64 read-only unit vectors, local frame.
+    """
+    grid = np.indices(SHAPE).reshape(3, -1).T
+    wi, wo = dirs_from_half_diff(*angles_from_cells(grid))
+    wi.flags.writeable = False
+    wo.flags.writeable = False
+    return wi, wo
+
+
+@functools.lru_cache(maxsize=1)
+def valid_cells() -> np.ndarray:
+    """(1458000,) bool, read-only: cells whose centre light and view are above the horizon."""
+    wi, wo = cell_directions()
+    valid = (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
+    valid.flags.writeable = False
+    return valid
+
+
+# ----------------------------------------------------------------------------- lookup
+def fill_unmeasured(table: np.ndarray) -> np.ndarray:
+    """Copy of ``table`` with NaN cells filled from the nearest measured cell.
+
+    Filled along theta_d first (unmeasured cells sit at large theta_d, beyond the
+    horizon), then along theta_h; a table with no measured cell becomes zeros.
+    Used for lookups near the horizon, where a bin's centre can be below it
+    while the queried directions are not.
+    """
+    out = np.array(table, dtype=np.float64)
+    for axis in (2, 1):
+        if not np.isnan(out).any():
+            break
+        out = _fill_along(out, axis, reverse=False)
+        out = _fill_along(out, axis, reverse=True)
+    return np.nan_to_num(out, nan=0.0)
+
+
+def _fill_along(a: np.ndarray, axis: int, reverse: bool) -> np.ndarray:
+    if reverse:
+        a = np.flip(a, axis)
+    n = a.shape[axis]
+    shape = [1] * a.ndim
+    shape[axis] = n
+    ramp = np.arange(n).reshape(shape)
+    idx = np.where(np.isnan(a), 0, ramp)
+    idx = np.maximum.accumulate(idx, axis=axis)
+    filled = np.take_along_axis(a, idx, axis=axis)
+    filled = np.where(np.isnan(a), filled, a)
+    return np.flip(filled, axis) if reverse else filled
+
+
+def local_frame(n: np.ndarray):
+    """Tangent and bitangent (N, 3) completing unit normals ``n`` (N, 3) to a
+    right-handed orthonormal frame (Duff et al. 2017); stable for every n."""
+    sign = np.where(n[..., 2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + n[..., 2])
+    b = n[..., 0] * n[..., 1] * a
+    t = np.stack([1.0 + sign * n[..., 0] ** 2 * a, sign * b, -sign * n[..., 0]], axis=-1)
+    bt = np.stack([b, sign + n[..., 1] ** 2 * a, -n[..., 1]], axis=-1)
+    return t, bt
+
+
+def to_local(n: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Express directions ``w`` (N, 3) in the local frame of normals ``n`` (N, 3)."""
+    t, bt = local_frame(n)
+    return np.stack(
+        [np.sum(w * t, axis=-1), np.sum(w * bt, axis=-1), np.sum(w * n, axis=-1)], axis=-1
+    )
+
+
+def evaluate(
+    table: np.ndarray,
+    n: np.ndarray,
+    l: np.ndarray,  # noqa: E741 - the paper's name for the light direction
+    v: np.ndarray,
+    interpolation: str = "nearest",
+) -> np.ndarray:
+    """BRDF value rho(n, l, v) from a table.
+
+    table: (3, 90, 90, 180) 1/sr (NaN = unmeasured; filled from the nearest
+    measured cell). n, l, v: (N, 3) unit vectors in one common frame (world
+    space, say); l points to the light, v to the viewer. Any float dtype.
+    interpolation: "nearest" (the reference reader's bins) or "trilinear"
+    (between bin centres; phi_d wraps with period pi).
+    Returns (N, 3) float64 in 1/sr, zero where n.l <= 0 or n.v <= 0; finite.
+    """
+    table = np.asarray(table, dtype=np.float64)
+    if table.shape != (3, *SHAPE):
+        raise ValueError(f"table must have shape (3, 90, 90, 180), got {table.shape}")
+    n, l, v = (np.asarray(x, dtype=np.float64).reshape(-1, 3) for x in (n, l, v))
+    if not (len(n) == len(l) == len(v)):
+        raise ValueError("n, l and v must have the same number of rows")
+    if np.isnan(table).any():
+        table = fill_unmeasured(table)
+    wi = to_local(n, l)
+    wo = to_local(n, v)
+    above = (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
+    theta_h, theta_d, phi_d = half_diff_from_dirs(wi, wo)
+    flat = table.reshape(3, -1)
+    if interpolation == "nearest":
+        rho = flat[:, linear_index(cells_from_angles(theta_h, theta_d, phi_d))].T
+    elif interpolation == "trilinear":
+        rho = _trilinear(flat, theta_h, theta_d, phi_d)
+    else:
+        raise ValueError(f"interpolation must be 'nearest' or 'trilinear', got {interpolation!r}")
+    return np.where(above[:, None], np.nan_to_num(rho, nan=0.0, posinf=0.0), 0.0)
+
+
+def _trilinear(flat: np.ndarray, theta_h, theta_d, phi_d) -> np.ndarray:
+    # Continuous coordinates with bin centres at integers.
+    x = 90.0 * np.sqrt(np.clip(theta_h, 0.0, _HALF_PI) / _HALF_PI) - 0.5
+    y = 90.0 * np.clip(theta_d, 0.0, _HALF_PI) / _HALF_PI - 0.5
+    z = 180.0 * np.mod(phi_d, np.pi) / np.pi - 0.5
+    x = np.clip(x, 0.0, SHAPE[0] - 1.0)
+    y = np.clip(y, 0.0, SHAPE[1] - 1.0)
+    x0 = np.minimum(np.floor(x).astype(np.int64), SHAPE[0] - 2)
+    y0 = np.minimum(np.floor(y).astype(np.int64), SHAPE[1] - 2)
+    z0f = np.floor(z)
+    fx, fy, fz = x - x0, y - y0, z - z0f
+    z0 = np.mod(z0f.astype(np.int64), SHAPE[2])
+    z1 = np.mod(z0 + 1, SHAPE[2])
+    out = np.zeros((len(x), 3))
+    for dx, wx in ((0, 1.0 - fx), (1, fx)):
+        for dy, wy in ((0, 1.0 - fy), (1, fy)):
+            for zi, wz in ((z0, 1.0 - fz), (z1, fz)):
+                idx = zi + SHAPE[2] * ((y0 + dy) + SHAPE[1] * (x0 + dx))
+                out += (wx * wy * wz)[:, None] * flat[:, idx].T
+    return out

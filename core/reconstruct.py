@@ -1,0 +1,205 @@
+"""Ridge reconstruction of a full BRDF table from a few samples (Nielsen et al. 2015).
+
+For each colour channel on its own (METHOD.md §2): the observed rho at cells S
+are mapped, ``b = x_obs(S) - mean(S)``, ``A = Q[S, :p]``, and the coefficients are
+the Tikhonov solution ``c = V diag(s / (s^2 + eta)) U^T b`` of ``A = U diag(s) V^T``;
+the table is ``unmap(Q[:, :p] c + mean)``.
+
+Choice of eta (the reference code fixes eta = 40). Ridge is the posterior mean
+of a Gaussian model ``b = A c + noise``: with ``Q = U S`` the training channels
+have coefficient vectors of unit norm, so the training set itself gives the
+prior ``c ~ N(0, tau^2 I)``, ``tau^2 = 1 / n_training_columns``, and then
+``eta = sigma^2 / tau^2``. The noise variance sigma^2 (measurement noise plus
+the part of the material outside the span) is chosen from the samples by
+maximising the marginal likelihood ``b ~ N(0, tau^2 A A^T + sigma^2 I)`` (the
+"evidence", MacKay 1992) over a log grid. Nielsen's eta = 40 corresponds to
+sigma = 0.3 in log-relative units with 450 training channels.
+
+Choice of p. By default ``p = min(n, k)``, Nielsen's rule: it is the matrix
+whose condition number the sampler minimised. Choosing p from the samples as
+well (``select_components=True``: maximum evidence over a grid of p) is
+available, and measured by ``bench/core_bench.py``: on held-out materials it
+truncates too early at small n (e.g. p = 2 from 5 optimal samples) and loses
+accuracy, so it is not the default. Generalised cross-validation was measured
+too and rejected: with n <= p it often interpolates (eta -> 0) and the table
+blows up away from the samples.
+
+Samples that fall in one cell are averaged in the mapped space and weighted by
+their count (each is an independent observation). Samples in cells outside the
+basis (unmeasured in training) are dropped and counted.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from . import merl
+from .basis import Basis
+from .sampling import acquisition_condition
+
+SIGMA2_GRID = 10.0 ** np.linspace(-14.0, 2.0, 129)  # noise variance, log-relative units^2
+P_GRID = (1, 2, 3, 4, 5, 6, 8, 10, 12, 14, 16, 20, 24, 28, 32, 40, 48, 64, 80, 96, 128)
+_ROW_BLOCK = 1 << 17
+
+
+@dataclasses.dataclass
+class Reconstruction:
+    """Result of :func:`reconstruct`.
+
+    table: (3, 90, 90, 180) float64 BRDF in 1/sr, finite and >= 0 everywhere.
+    condition: condition number of ``Q[S, :min(n, k)]`` over the used cells S.
+    residuals: (n, 3) fitted minus observed rho at the used cells, 1/sr.
+    residuals_mapped: (n, 3) the same in the log-relative mapped space.
+    cells: (n, 3) int64 the used (unique, in-basis) cells.
+    eta: (3,) regulariser per channel (absolute, in the units of s^2).
+    n_components: (3,) p per channel.
+    noise_sigma: (3,) the noise level sigma per channel (log-relative units) behind
+      eta; NaN where eta was given.
+    log_evidence: (3,) log marginal likelihood of the chosen model; NaN if eta given.
+    n_samples: number of input samples; n_outside: dropped as outside the basis.
+    """
+
+    table: np.ndarray
+    condition: float
+    residuals: np.ndarray
+    residuals_mapped: np.ndarray
+    cells: np.ndarray
+    eta: np.ndarray
+    n_components: np.ndarray
+    noise_sigma: np.ndarray
+    log_evidence: np.ndarray
+    n_samples: int
+    n_outside: int
+
+    def summary(self) -> dict:
+        """JSON-friendly summary for reports."""
+        return {
+            "condition": float(self.condition),
+            "n_samples": int(self.n_samples),
+            "n_cells": int(len(self.cells)),
+            "n_outside": int(self.n_outside),
+            "eta": [float(e) for e in self.eta],
+            "n_components": [int(p) for p in self.n_components],
+            "noise_sigma": [float(g) for g in self.noise_sigma],
+            "log_evidence": [float(g) for g in self.log_evidence],
+            "residual_rms_mapped": float(np.sqrt(np.mean(self.residuals_mapped**2))),
+        }
+
+
+def reconstruct(
+    basis: Basis,
+    cells: np.ndarray,
+    values: np.ndarray,
+    *,
+    eta: float | None = None,
+    n_components: int | None = None,
+    select_components: bool = False,
+) -> Reconstruction:
+    """Reconstruct a full table from rho observed at MERL cells.
+
+    basis: the PCA basis. cells: (M, 3) int bin indices. values: (M, 3) rho in
+    1/sr (any float dtype; small negatives from noise are clipped to 0).
+    eta: fix the regulariser (absolute) instead of choosing it by evidence.
+    n_components: fix p (capped at the number of distinct cells) instead of
+    min(n, k); select_components: choose p by evidence instead.
+    Raises ValueError for NaN/Inf values, mismatched shapes, or when no sample
+    lies in the basis.
+    """
+    cells = np.asarray(cells)
+    values = np.asarray(values, dtype=np.float64)
+    if cells.ndim != 2 or cells.shape[1] != 3:
+        raise ValueError(f"cells must have shape (M, 3), got {cells.shape}")
+    if values.shape != (len(cells), 3):
+        raise ValueError(f"values must have shape ({len(cells)}, 3), got {values.shape}")
+    if not np.all(np.isfinite(values)):
+        bad = int(np.sum(~np.isfinite(values).all(axis=1)))
+        raise ValueError(f"values hold NaN or Inf in {bad} of {len(values)} samples")
+    if len(cells) == 0:
+        raise ValueError("no samples to reconstruct from")
+
+    rows = basis.rows_of(merl.linear_index(cells))
+    inside = rows >= 0
+    n_outside = int(np.sum(~inside))
+    if not inside.any():
+        raise ValueError(
+            f"none of the {len(cells)} samples lies in a cell the basis covers"
+        )
+    rows, values = rows[inside], values[inside]
+    x = basis.to_mapped(values, rows)  # (M, 3)
+
+    # Duplicate cells: mean in the mapped space, weight = count.
+    urows, inverse, counts = np.unique(rows, return_inverse=True, return_counts=True)
+    xu = np.zeros((len(urows), 3))
+    np.add.at(xu, inverse, x)
+    xu /= counts[:, None]
+    w = np.sqrt(counts.astype(np.float64))[:, None]
+    bw = w * (xu - basis.mean[urows].astype(np.float64)[:, None])
+    A_full = w * basis.Q[urows].astype(np.float64)
+
+    n = len(urows)
+    p_max = min(n, basis.n_components)
+    if n_components is not None:
+        p_grid = [int(np.clip(n_components, 1, p_max))]
+    elif select_components:
+        p_grid = sorted({p for p in P_GRID if p <= p_max} | {p_max})
+    else:
+        p_grid = [p_max]
+    tau2 = 1.0 / basis.info["n_columns"]
+    best: list = [None, None, None]
+    for p in p_grid:
+        U, s, Vt = np.linalg.svd(A_full[:, :p], full_matrices=False)
+        beta = U.T @ bw  # (r, 3)
+        if eta is None:
+            log_ev, sigma2 = _evidence(s, beta, bw, tau2)
+        else:
+            log_ev = np.full(3, np.nan)
+            sigma2 = np.full(3, eta * tau2)
+        for c in range(3):
+            if best[c] is None or log_ev[c] > best[c][0]:
+                e = sigma2[c] / tau2
+                coef = Vt.T @ ((s / (s**2 + e)) * beta[:, c])
+                best[c] = (log_ev[c], p, e, sigma2[c], coef)
+
+    mean = basis.mean.astype(np.float64)
+    x_table = np.empty((len(basis.cells), 3))
+    for c in range(3):
+        p, coef = best[c][1], best[c][4]
+        for start in range(0, len(basis.cells), _ROW_BLOCK):
+            sl = slice(start, start + _ROW_BLOCK)
+            x_table[sl, c] = basis.Q[sl, :p].astype(np.float64) @ coef + mean[sl]
+    rho_rows = basis.from_mapped(x_table)
+    return Reconstruction(
+        table=basis.table_from_rows(rho_rows),
+        condition=acquisition_condition(basis.Q, urows),
+        residuals=rho_rows[urows] - basis.from_mapped(xu, urows),
+        residuals_mapped=x_table[urows] - xu,
+        cells=merl.cells_from_linear(basis.cells[urows]),
+        eta=np.array([best[c][2] for c in range(3)]),
+        n_components=np.array([best[c][1] for c in range(3)]),
+        noise_sigma=np.array([np.sqrt(best[c][3]) if eta is None else np.nan
+                              for c in range(3)]),
+        log_evidence=np.array([best[c][0] for c in range(3)]),
+        n_samples=int(len(cells)),
+        n_outside=n_outside,
+    )
+
+
+def _evidence(s: np.ndarray, beta: np.ndarray, b: np.ndarray, tau2: float):
+    """Log marginal likelihood of ``b ~ N(0, tau2 A A^T + sigma2 I)`` maximised over
+    SIGMA2_GRID, per channel. s: (r,) singular values of A (n x p), beta = U^T b (r, 3),
+    b: (n, 3). Returns (log_evidence (3,), sigma2 (3,))."""
+    n, r = b.shape[0], len(s)
+    perp = np.maximum(np.sum(b**2, axis=0) - np.sum(beta**2, axis=0), 0.0)  # (3,)
+    sig2 = SIGMA2_GRID[:, None]  # (G, 1)
+    var = tau2 * s[None, :] ** 2 + sig2  # (G, r)
+    ll = -0.5 * (
+        np.log(var).sum(axis=1)[:, None]
+        + np.einsum("gr,rc->gc", 1.0 / var, beta**2)
+        + (n - r) * np.log(sig2)
+        + perp[None, :] / sig2
+        + n * np.log(2.0 * np.pi)
+    )  # (G, 3)
+    i = np.argmax(ll, axis=0)
+    return ll[i, np.arange(3)], SIGMA2_GRID[i]

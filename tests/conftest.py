@@ -1,0 +1,23 @@
+"""Shared fixtures. No bpy here: core tests must run without Blender."""
+
+import pathlib
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+CACHE = ROOT / ".cache"  # git-ignored; the default basis is built once, then reused
+
+
+@pytest.fixture(scope="session")
+def default_basis():
+    """The built-in basis (built on first use, about two minutes; cached in .cache/)."""
+    from brdf_reconstruct.core import basis
+
+    return basis.load_default(cache_dir=CACHE)
+
+
+@pytest.fixture(scope="session")
+def heldout_tables():
+    from brdf_reconstruct.core import database
+
+    return {s["name"]: database.make_table(s) for s in database.heldout_specs()}

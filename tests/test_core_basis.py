@@ -1,0 +1,95 @@
+"""The PCA basis: mapping, build, cache keyed by data and settings."""
+
+import numpy as np
+import pytest
+
+from brdf_reconstruct.core import basis, merl
+
+
+def _lambert_table(albedo):
+    table = np.full((3, merl.N_CELLS), np.nan)
+    table[:, merl.valid_cells()] = np.asarray(albedo, dtype=float)[:, None] / np.pi
+    return table.reshape(3, *merl.SHAPE)
+
+
+def _folder(tmp_path, albedos):
+    folder = tmp_path / "merl"
+    folder.mkdir(exist_ok=True)
+    for i, a in enumerate(albedos):
+        merl.write(folder / f"m{i}.binary", _lambert_table(a))
+    return folder
+
+
+def test_mapping_round_trip(default_basis):
+    B = default_basis
+    rows = np.arange(0, len(B.cells), 997)
+    rho = np.random.default_rng(0).lognormal(-1.0, 2.0, size=(len(rows), 3))
+    np.testing.assert_allclose(B.from_mapped(B.to_mapped(rho, rows), rows), rho, rtol=1e-9)
+
+
+def test_default_basis_shape_and_budget(default_basis, tmp_path):
+    B = default_basis
+    assert B.Q.dtype == np.float32 and B.Q.shape == (len(B.cells), basis.N_COMPONENTS)
+    assert B.info["n_columns"] >= 300  # >= 100 materials x 3 channels
+    assert np.all(np.diff(B.singular_values) <= 0)
+    # columns of Q are orthogonal with norms = singular values (Q = U S)
+    gram = B.Q.astype(np.float64).T @ B.Q.astype(np.float64)
+    np.testing.assert_allclose(np.sqrt(np.diag(gram)), B.singular_values, rtol=1e-4)
+    off = gram / np.outer(B.singular_values, B.singular_values) - np.eye(B.n_components)
+    assert np.abs(off).max() < 1e-3
+    basis.save(B, tmp_path / "b.npz")
+    assert (tmp_path / "b.npz").stat().st_size < 200e6
+
+
+def test_merl_folder_basis_cached_and_rebuilt_when_data_change(tmp_path, monkeypatch):
+    folder = _folder(tmp_path, [[0.1, 0.2, 0.3], [0.5, 0.4, 0.3], [0.9, 0.9, 0.8]])
+    cache = tmp_path / "cache"
+    first = basis.load_merl_folder(folder, cache_dir=cache, n_components=4)
+    assert first.info["n_columns"] == 9
+    assert len(list(cache.glob("basis-*.npz"))) == 1
+
+    calls = []
+    real_build = basis.build
+    monkeypatch.setattr(basis, "build", lambda *a, **k: calls.append(1) or real_build(*a, **k))
+    again = basis.load_merl_folder(folder, cache_dir=cache, n_components=4)
+    assert calls == [] and again.fingerprint == first.fingerprint
+    np.testing.assert_array_equal(again.Q, first.Q)
+
+    merl.write(folder / "m1.binary", _lambert_table([0.05, 0.6, 0.2]))  # same name and size
+    changed = basis.load_merl_folder(folder, cache_dir=cache, n_components=4)
+    assert calls == [1] and changed.fingerprint != first.fingerprint
+    basis.load_merl_folder(folder, cache_dir=cache, n_components=3)  # settings are keyed too
+    assert calls == [1, 1]
+
+
+def test_damaged_cache_is_rebuilt(tmp_path):
+    folder = _folder(tmp_path, [[0.1, 0.2, 0.3], [0.5, 0.4, 0.3]])
+    cache = tmp_path / "cache"
+    basis.load_merl_folder(folder, cache_dir=cache, n_components=2)
+    (path,) = cache.glob("basis-*.npz")
+    path.write_bytes(b"garbage")
+    rebuilt = basis.load_merl_folder(folder, cache_dir=cache, n_components=2)
+    assert rebuilt.n_components == 2
+
+
+def test_merl_folder_errors(tmp_path):
+    with pytest.raises(ValueError, match="does not exist"):
+        basis.load_merl_folder(tmp_path / "nope")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ValueError, match="no MERL"):
+        basis.load_merl_folder(tmp_path / "empty")
+
+
+def test_lambert_family_reconstructs_from_one_sample(tmp_path):
+    """A basis of grey Lambert tables has a one-dimensional span; one sample pins it."""
+    folder = _folder(tmp_path, [[a, a, a] for a in (0.05, 0.2, 0.5, 0.8)])
+    B = basis.load_merl_folder(folder, cache_dir=tmp_path / "c", n_components=1)
+    from brdf_reconstruct.core import reconstruct
+
+    truth = _lambert_table([0.3, 0.3, 0.3])
+    cell = merl.cells_from_linear(B.cells[[1000]])
+    rec = reconstruct.reconstruct(B, cell, truth.reshape(3, -1)[:, B.cells[[1000]]].T)
+    # x = ln((rho c + eps)/(m + eps)) is not linear in rho, so a new albedo is not
+    # exactly in the span; the level must still be right to a few percent
+    got = rec.table.reshape(3, -1)[:, B.cells]
+    np.testing.assert_allclose(np.median(got), 0.3 / np.pi, rtol=0.05)

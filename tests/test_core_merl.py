@@ -1,0 +1,244 @@
+"""MERL format, angle mapping and lookup, against independent references."""
+
+import math
+
+import numpy as np
+import pytest
+
+from brdf_reconstruct.core import merl
+
+SCALE = (1 / 1500, 1.15 / 1500, 1.66 / 1500)
+
+
+def _write_raw(path, stored, dims=(90, 90, 180)):
+    """Write a MERL file byte by byte, independently of merl.write."""
+    with open(path, "wb") as f:
+        f.write(np.asarray(dims, dtype="<i4").tobytes())
+        f.write(np.asarray(stored, dtype="<f8").tobytes())
+
+
+def _random_stored(rng):
+    stored = rng.uniform(0.0, 5000.0, size=3 * merl.N_CELLS)
+    stored[rng.random(stored.size) < 0.05] = -1.0  # unmeasured cells
+    return stored
+
+
+# ---------------------------------------------------------------------------- file I/O
+def test_read_uses_reference_layout_and_scales(tmp_path):
+    rng = np.random.default_rng(1)
+    stored = _random_stored(rng)
+    path = tmp_path / "a.binary"
+    _write_raw(path, stored)
+    table = merl.read(path)
+    assert table.shape == (3, 90, 90, 180) and table.dtype == np.float64
+    for _ in range(200):
+        c, ith, itd, ipd = (int(rng.integers(m)) for m in (3, 90, 90, 180))
+        raw = stored[c * 1458000 + ipd + 180 * (itd + 90 * ith)]
+        if raw < 0:
+            assert math.isnan(table[c, ith, itd, ipd])
+        else:
+            assert table[c, ith, itd, ipd] == raw * SCALE[c]
+
+
+def test_write_read_bit_exact(tmp_path):
+    """A table on the format's grid (e.g. any table read from a file) survives
+    write -> read bit for bit, NaN cells included."""
+    path = tmp_path / "src.binary"
+    _write_raw(path, _random_stored(np.random.default_rng(2)))
+    table = merl.read(path)
+    merl.write(tmp_path / "out.binary", table)
+    again = merl.read(tmp_path / "out.binary")
+    assert np.array_equal(np.isnan(table), np.isnan(again))
+    assert np.array_equal(table.view(np.uint64)[~np.isnan(table)],
+                          again.view(np.uint64)[~np.isnan(again)])
+    # and the file it writes is stable under a second round trip
+    merl.write(tmp_path / "out2.binary", again)
+    assert (tmp_path / "out.binary").read_bytes() == (tmp_path / "out2.binary").read_bytes()
+    assert (tmp_path / "out.binary").stat().st_size == 34_992_012
+
+
+def test_write_read_arbitrary_table_within_one_ulp(tmp_path):
+    table = np.random.default_rng(3).lognormal(0.0, 3.0, size=(3, 90, 90, 180))
+    merl.write(tmp_path / "t.binary", table)
+    np.testing.assert_array_max_ulp(merl.read(tmp_path / "t.binary"), table, maxulp=1)
+
+
+def test_unmeasured_written_negative(tmp_path):
+    table = np.ones((3, 90, 90, 180))
+    table[1, 5, 6, 7] = np.nan
+    merl.write(tmp_path / "t.binary", table)
+    raw = np.fromfile(tmp_path / "t.binary", dtype="<f8", offset=12)
+    assert raw[1458000 + 7 + 180 * (6 + 90 * 5)] < 0
+    assert np.isnan(merl.read(tmp_path / "t.binary")[1, 5, 6, 7])
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda p: _write_raw(p, np.zeros(3 * 90 * 90 * 90), dims=(90, 90, 90)), "header"),
+        (lambda p: p.write_bytes(np.asarray((90, 90, 180), "<i4").tobytes() + b"\0" * 800),
+         "truncated"),
+        (lambda p: _write_raw(p, np.zeros(3 * merl.N_CELLS + 1)), "too long"),
+        (lambda p: p.write_bytes(b"abc"), "no header"),
+    ],
+)
+def test_bad_files_raise_value_error_naming_file(tmp_path, make, message):
+    path = tmp_path / "broken.binary"
+    make(path)
+    with pytest.raises(ValueError, match=message) as err:
+        merl.read(path)
+    assert "broken.binary" in str(err.value)
+
+
+def test_write_rejects_inf_and_wrong_shape(tmp_path):
+    with pytest.raises(ValueError, match="shape"):
+        merl.write(tmp_path / "x.binary", np.ones((3, 90, 90, 90)))
+    bad = np.ones((3, 90, 90, 180))
+    bad[0, 0, 0, 0] = np.inf
+    with pytest.raises(ValueError, match="Inf"):
+        merl.write(tmp_path / "x.binary", bad)
+
+
+# ------------------------------------------------------------------------ angle mapping
+def _rot_z(a):
+    return np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+
+
+def _rot_y(a):
+    return np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
+
+
+def _reference_angles(wi, wo):
+    """Rusinkiewicz angles by explicit rotation matrices, one pair at a time."""
+    h = (wi + wo) / np.linalg.norm(wi + wo)
+    theta_h = math.acos(min(1.0, h[2]))
+    phi_h = math.atan2(h[1], h[0])
+    d = _rot_y(-theta_h) @ _rot_z(-phi_h) @ wi
+    theta_d = math.acos(max(-1.0, min(1.0, d[2])))
+    phi_d = math.atan2(d[1], d[0])
+    if phi_d < 0:
+        phi_d += math.pi
+    return theta_h, theta_d, phi_d
+
+
+def _random_hemisphere(rng, n):
+    w = rng.normal(size=(n, 3))
+    w[:, 2] = np.abs(w[:, 2])
+    return w / np.linalg.norm(w, axis=1, keepdims=True)
+
+
+def test_angles_match_rotation_reference():
+    rng = np.random.default_rng(4)
+    wi, wo = _random_hemisphere(rng, 500), _random_hemisphere(rng, 500)
+    got = np.stack(merl.half_diff_from_dirs(wi, wo), axis=1)
+    ref = np.array([_reference_angles(a, b) for a, b in zip(wi, wo, strict=True)])
+    np.testing.assert_allclose(got, ref, atol=1e-12)
+    # bins against the reference reader's formulas
+    ref_cells = np.stack([
+        np.minimum(np.floor(90 * np.sqrt(ref[:, 0] / (np.pi / 2))), 89),
+        np.minimum(np.floor(ref[:, 1] / (np.pi / 2) * 90), 89),
+        np.minimum(np.floor(ref[:, 2] / np.pi * 180), 179),
+    ], axis=1)
+    np.testing.assert_array_equal(merl.cells_from_dirs(wi, wo), ref_cells)
+
+
+def test_directions_from_angles_round_trip_and_reciprocity():
+    rng = np.random.default_rng(5)
+    wi, wo = _random_hemisphere(rng, 1000), _random_hemisphere(rng, 1000)
+    angles = merl.half_diff_from_dirs(wi, wo)
+    wi2, wo2 = merl.dirs_from_half_diff(*angles)
+    # the rebuilt pair is the original rotated about z (phi_h dropped): same angles
+    np.testing.assert_allclose(np.stack(merl.half_diff_from_dirs(wi2, wo2)),
+                               np.stack(angles), atol=1e-10)
+    # the phi_d fold may swap light and view, so compare the elevations unordered
+    np.testing.assert_allclose(np.sort(np.stack([wi2[:, 2], wo2[:, 2]]), axis=0),
+                               np.sort(np.stack([wi[:, 2], wo[:, 2]]), axis=0), atol=1e-12)
+    np.testing.assert_allclose(np.sum(wi2 * wo2, axis=1), np.sum(wi * wo, axis=1), atol=1e-12)
+    # reciprocity: swapping light and view gives the same cell
+    np.testing.assert_array_equal(merl.cells_from_dirs(wi, wo), merl.cells_from_dirs(wo, wi))
+
+
+def test_every_cell_centre_maps_back_to_its_cell():
+    grid = np.indices(merl.SHAPE).reshape(3, -1).T
+    wi, wo = merl.cell_directions()
+    np.testing.assert_array_equal(merl.cells_from_dirs(wi, wo), grid)
+    np.testing.assert_array_equal(merl.cells_from_linear(merl.linear_index(grid)), grid)
+
+
+def test_phi_d_zero_falls_in_bin_zero():
+    # wi and wo in the x-z plane, mirror images about a tilted half vector
+    cells = merl.cells_from_angles(np.array([0.3]), np.array([0.4]), np.array([0.0]))
+    assert cells[0, 2] == 0
+    wi, wo = merl.dirs_from_half_diff(0.3, 0.4, 0.0)
+    assert merl.cells_from_dirs(wi[None], wo[None])[0, 2] == 0
+
+
+def test_valid_cells_about_three_quarters():
+    assert 1_000_000 < merl.valid_cells().sum() < 1_200_000
+
+
+# ----------------------------------------------------------------------------- lookup
+def _random_rotation(rng):
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+def test_evaluate_is_frame_independent_and_matches_bins():
+    rng = np.random.default_rng(6)
+    table = rng.uniform(0.1, 2.0, size=(3, 90, 90, 180))
+    wi, wo = _random_hemisphere(rng, 300), _random_hemisphere(rng, 300)
+    n = np.tile([0.0, 0.0, 1.0], (300, 1))
+    R = _random_rotation(rng)
+    local = merl.evaluate(table, n, wi, wo)
+    world = merl.evaluate(table, n @ R.T, wi @ R.T, wo @ R.T)
+    np.testing.assert_allclose(world, local, rtol=0, atol=0)
+    idx = merl.linear_index(merl.cells_from_dirs(wi, wo))
+    np.testing.assert_array_equal(local, table.reshape(3, -1)[:, idx].T)
+
+
+def test_trilinear_reproduces_centres_and_linear_fields():
+    rng = np.random.default_rng(7)
+    cells = np.stack([rng.integers(1, 89, 200), rng.integers(1, 89, 200),
+                      rng.integers(0, 180, 200)], axis=1)
+    table = rng.uniform(0.1, 2.0, size=(3, 90, 90, 180))
+    wi, wo = merl.dirs_from_half_diff(*merl.angles_from_cells(cells))
+    n = np.tile([0.0, 0.0, 1.0], (200, 1))
+    ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    got = merl.evaluate(table, n[ok], wi[ok], wo[ok], interpolation="trilinear")
+    want = table.reshape(3, -1)[:, merl.linear_index(cells[ok])].T
+    np.testing.assert_allclose(got, want, rtol=1e-9)
+    # a field linear in theta_d: trilinear is exact between interior centres
+    lin = np.broadcast_to((np.arange(90) + 0.5)[None, None, :, None] / 90 * np.pi / 2,
+                          (3, 90, 90, 180)).copy()
+    th = rng.uniform(0.05, 1.0, 200)
+    td = rng.uniform(np.pi / 2 / 90, np.pi / 2 * 88.5 / 90, 200)
+    pd = rng.uniform(0, np.pi, 200)
+    wi, wo = merl.dirs_from_half_diff(th, td, pd)
+    ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    got = merl.evaluate(lin, n[ok], wi[ok], wo[ok], interpolation="trilinear")
+    np.testing.assert_allclose(got[:, 0], td[ok], atol=1e-9)
+
+
+def test_evaluate_zero_below_horizon_and_fills_unmeasured():
+    table = np.full((3, 90, 90, 180), np.nan)
+    table.reshape(3, -1)[:, merl.valid_cells()] = 1.0
+    n = np.array([[0.0, 0.0, 1.0]] * 3)
+    l = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1.0, 0.0, 1e-9]])  # noqa: E741
+    v = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 1e-9]])
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    l /= np.linalg.norm(l, axis=1, keepdims=True)
+    for mode in ("nearest", "trilinear"):
+        rho = merl.evaluate(table, n, l, v, interpolation=mode)
+        assert np.all(np.isfinite(rho))
+        np.testing.assert_array_equal(rho[1], 0.0)  # light below the surface
+        np.testing.assert_allclose(rho[[0, 2]], 1.0)  # grazing pair in an unmeasured cell
+
+
+def test_fill_unmeasured_keeps_measured_cells():
+    rng = np.random.default_rng(8)
+    table = rng.uniform(size=(3, 90, 90, 180))
+    holes = rng.random(table.shape) < 0.3
+    filled = merl.fill_unmeasured(np.where(holes, np.nan, table))
+    assert np.all(np.isfinite(filled))
+    np.testing.assert_array_equal(filled[~holes], table[~holes])
