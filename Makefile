@@ -11,6 +11,10 @@ PYTHON311 := $(shell \
 	elif python3 -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null; \
 	then echo python3; fi)
 
+# The built-in basis is built once (about 80 s) and cached here for demo, bench
+# and tests alike; outside make it defaults to ~/.cache/brdf_reconstruct.
+export BRDF_RECONSTRUCT_CACHE ?= $(CURDIR)/.cache
+
 .PHONY: venv test lint demo bench clean
 
 # Internal: (re)install only when requirements.txt or pyproject.toml change.

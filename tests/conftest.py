@@ -1,11 +1,13 @@
 """Shared fixtures. No bpy here: core tests must run without Blender."""
 
+import os
 import pathlib
 
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-CACHE = ROOT / ".cache"  # git-ignored; the default basis is built once, then reused
+# git-ignored; the default basis is built once, then reused (make sets the same place)
+CACHE = pathlib.Path(os.environ.get("BRDF_RECONSTRUCT_CACHE", ROOT / ".cache"))
 
 
 @pytest.fixture(scope="session")
