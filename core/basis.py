@@ -63,6 +63,8 @@ class Basis:
     x_range: np.ndarray
     fingerprint: str
     info: dict
+    # lookups derived from ``cells`` on first use (row of each cell, fill source)
+    _derived: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
 
     @property
     def n_components(self) -> int:
@@ -111,33 +113,24 @@ class Basis:
         return self.table_from_rows(self.from_mapped(x_hat))
 
 
-_ROW_LOOKUPS: dict[int, np.ndarray] = {}
-
-
 def _row_lookup(basis: Basis) -> np.ndarray:
-    key = id(basis.cells)
-    lut = _ROW_LOOKUPS.get(key)
+    """(1458000,) int32 basis row of each cell, -1 outside the basis."""
+    lut = basis._derived.get("rows")
     if lut is None:
         lut = np.full(merl.N_CELLS, -1, dtype=np.int32)
         lut[basis.cells] = np.arange(len(basis.cells), dtype=np.int32)
-        _ROW_LOOKUPS.clear()  # one basis in use at a time; keep memory flat
-        _ROW_LOOKUPS[key] = lut
+        basis._derived["rows"] = lut
     return lut
-
-
-_FILL_SOURCES: dict[int, np.ndarray] = {}
 
 
 def _fill_source(basis: Basis) -> np.ndarray:
     """(1458000,) basis row that each cell takes its value from (itself if inside)."""
-    key = id(basis.cells)
-    src = _FILL_SOURCES.get(key)
+    src = basis._derived.get("fill")
     if src is None:
-        rows = np.full((1, merl.N_CELLS), np.nan)
-        rows[0, basis.cells] = np.arange(len(basis.cells))
+        rows = np.full(merl.N_CELLS, np.nan)
+        rows[basis.cells] = np.arange(len(basis.cells))
         src = merl.fill_unmeasured(rows.reshape(1, *merl.SHAPE)).reshape(-1).astype(np.int64)
-        _FILL_SOURCES.clear()
-        _FILL_SOURCES[key] = src
+        basis._derived["fill"] = src
     return src
 
 

@@ -259,13 +259,17 @@ def _fail(path, message):
     raise ValueError(f"{path}: {message}")
 
 
-def _number(d, key, path, lo=None, hi=None, default=None, lo_open=False):
+def _lookup(d, key, path):
+    """The value at ``d[key]`` and its path for messages; ValueError if missing."""
     if key not in d:
-        if default is not None:
-            return default
         _fail(path, f"missing required key {key!r}")
-    x = d[key]
-    where = f"{path}[{key!r}]"
+    return d[key], f"{path}[{key!r}]"
+
+
+def _number(d, key, path, lo=None, hi=None, default=None, lo_open=False):
+    if key not in d and default is not None:
+        return default
+    x, where = _lookup(d, key, path)
     if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
         _fail(where, f"must be a finite number, got {x!r}")
     if lo is not None and (x <= lo if lo_open else x < lo):
@@ -276,12 +280,9 @@ def _number(d, key, path, lo=None, hi=None, default=None, lo_open=False):
 
 
 def _rgb(d, key, path, default=None, hi=None):
-    if key not in d:
-        if default is not None:
-            return default
-        _fail(path, f"missing required key {key!r}")
-    x = d[key]
-    where = f"{path}[{key!r}]"
+    if key not in d and default is not None:
+        return default
+    x, where = _lookup(d, key, path)
     values = x if isinstance(x, (list, tuple)) else [x]
     if len(values) not in (1, 3):
         _fail(where, f"must be a number or a list of 3 numbers, got {x!r}")
