@@ -1,0 +1,230 @@
+"""Observations and the reliable region on numpy scenes with known answers."""
+
+import numpy as np
+import pytest
+
+from brdf_reconstruct.core import merl, observations, reliable, synthetic
+
+
+def _lambert_table(albedo=0.5):
+    table = np.full((3, merl.N_CELLS), np.nan)
+    table[:, merl.valid_cells()] = albedo / np.pi
+    return table.reshape(3, *merl.SHAPE)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    z = synthetic.height_field(96)
+    truth = synthetic.gbuffer_from_heights(z)
+    scan = synthetic.gbuffer_from_heights(synthetic.blunted(z, sigma_px=2.0))
+    return truth, scan
+
+
+def _observe(photo, g, light, settings=None, **kw):
+    kw.setdefault("visibility", np.ones(g.mask.shape))
+    kw.setdefault("region", np.zeros(g.mask.shape, dtype=int))
+    return observations.observe(photo, g.normal, g.position, kw.pop("visibility"),
+                                kw.pop("region"), g.camera_center, light,
+                                settings=settings, **kw)
+
+
+# ------------------------------------------------------------------------ observations
+def test_lambertian_rho_is_albedo_over_pi_with_rgb_irradiance(scene):
+    truth, _ = scene
+    light = synthetic.LIGHTS[0]
+    E = np.array([2.0, 1.0, 0.5])
+    photo = synthetic.photo(_lambert_table(0.4), truth, light, irradiance=E)
+    s = _observe(photo, truth, light, irradiance=E)
+    assert len(s) > 0.5 * truth.mask.size
+    np.testing.assert_allclose(s.rho, 0.4 / np.pi, rtol=1e-12)
+    # cells agree with the directions they came from
+    np.testing.assert_array_equal(
+        s.cells, merl.cells_from_dirs(merl.to_local(s.n, s.l), merl.to_local(s.n, s.v)))
+
+
+def test_removals_are_counted(scene):
+    truth, _ = scene
+    light = np.array([0.0, 0.0, 1.0])
+    photo = synthetic.photo(_lambert_table(), truth, light)
+    vis = np.ones(truth.mask.shape)
+    vis[:10] = 0.0  # shadowed rows
+    region = np.zeros(truth.mask.shape, dtype=int)
+    region[-5:] = -1  # background rows
+    photo[20, 20] = np.nan
+    photo[30, 30] = 50.0  # saturated
+    s = _observe(photo, truth, light, visibility=vis, region=region,
+                 settings=observations.ObservationSettings(clip_level=10.0))
+    r = s.removed
+    assert r["background"] == 5 * 96 and r["shadowed"] == 10 * 96
+    assert r["nonfinite"] == 1 and r["saturated"] == 1
+    assert len(s) + sum(r.values()) == truth.mask.size
+
+
+def test_extreme_all_saturated_photo(scene):
+    truth, _ = scene
+    photo = np.full(truth.mask.shape + (3,), 100.0)
+    s = _observe(photo, truth, synthetic.LIGHTS[3],
+                 settings=observations.ObservationSettings(clip_level=1.0))
+    assert len(s) == 0 and s.removed["saturated"] > 0
+    with pytest.raises(ValueError, match="no samples"):
+        reliable.reliable_candidates(s)
+
+
+def test_extreme_light_exactly_at_grazing(scene):
+    truth, _ = scene
+    light = np.array([1.0, 0.0, 0.0])  # in the plane of a flat surface
+    photo = synthetic.photo(_lambert_table(), truth, light)
+    s = _observe(photo, truth, light)
+    assert np.all(np.sum(s.n * s.l, axis=1) >= 0.1)  # grazing ones removed
+    assert s.removed["grazing"] > 0
+    assert np.all(np.isfinite(s.rho))
+
+
+def test_extreme_camera_at_the_light(scene):
+    """h = v = l: every sample in phi_d bin 0 ... theta_d = 0, finite rho."""
+    truth, _ = scene
+    light = np.array([0.0, 0.0, 1.0])  # the orthographic camera looks down -z
+    photo = synthetic.photo(_lambert_table(0.3), truth, light)
+    s = _observe(photo, truth, light)
+    assert np.all(s.cells[:, 1] == 0)  # theta_d = 0
+    np.testing.assert_allclose(s.rho, 0.3 / np.pi, rtol=1e-9)
+    cand, _ = reliable.reliable_candidates(s)
+    assert np.all(np.isfinite(cand.rho))
+
+
+def test_extreme_nan_in_normals(scene):
+    truth, _ = scene
+    light = synthetic.LIGHTS[0]
+    photo = synthetic.photo(_lambert_table(), truth, light)
+    normal = truth.normal.copy()
+    normal[40:42, 40:42] = np.nan
+    g = synthetic.GBuffer(normal, truth.position, truth.mask, truth.camera_center)
+    s = _observe(photo, g, light)
+    assert s.removed["nonfinite"] == 4
+    assert np.all(np.isfinite(s.n)) and np.all(np.isfinite(s.rho))
+    cand, _ = reliable.reliable_candidates(s)
+    assert np.all(np.isfinite(cand.rho))
+
+
+def test_extreme_single_pixel_region(scene):
+    truth, _ = scene
+    light = synthetic.LIGHTS[3]
+    photo = synthetic.photo(_lambert_table(), truth, light)
+    region = np.zeros(truth.mask.shape, dtype=int)
+    region[50, 50] = 7
+    s = _observe(photo, truth, light, region=region)
+    cand, report = reliable.reliable_candidates(
+        s, reliable.ReliableSettings(use_curvature=False))
+    assert 7 in cand.region  # its own peak, never removed
+    assert len(report.peaks) == 2
+
+
+def test_no_reliable_pixels_is_a_clear_error(scene):
+    _, scan = scene
+    light = synthetic.LIGHTS[0]
+    photo = synthetic.photo(_lambert_table(), scan, light)
+    s = _observe(photo, scan, light)
+    with pytest.raises(ValueError, match="no reliable pixels left after the curvature"):
+        reliable.reliable_candidates(s, reliable.ReliableSettings(
+            curvature_threshold=-1.0, use_brightest=False))
+
+
+# --------------------------------------------------------------------- reliable region
+def test_curvature_stage_keeps_better_normals(scene):
+    truth, scan = scene
+    light = synthetic.LIGHTS[0]
+    photo = synthetic.photo(_lambert_table(), truth, light)
+    s = _observe(photo, scan, light)
+    cand, report = reliable.reliable_candidates(s, reliable.ReliableSettings(
+        use_monotonicity=False, use_brightest=False))
+    assert report.removed["curvature"] > 0
+    angle = synthetic.normal_angle_error(truth, scan)
+    kept = angle[cand.pixel[:, 0], cand.pixel[:, 1]]
+    everything = angle[s.pixel[:, 0], s.pixel[:, 1]]
+    assert np.median(kept) < 0.5 * np.percentile(everything, 90)
+    assert np.mean(kept) < np.mean(everything)
+
+
+def test_monotonicity_does_not_gut_a_lambertian_region(scene):
+    truth, scan = scene
+    parts = []
+    for i, light in enumerate(synthetic.LIGHTS):
+        photo = synthetic.photo(_lambert_table(0.5), truth, light, noise=0.02, rng=i)
+        parts.append(_observe(photo, scan, light, view_index=i))
+    s = observations.concatenate(parts)
+    cand, report = reliable.reliable_candidates(s, reliable.ReliableSettings(
+        use_curvature=False, use_brightest=False))
+    # blunted normals scatter rho (cosine divided by the wrong n.l), yet most survive
+    assert report.removed["monotonicity"] < 0.25 * len(s)
+    # with exact normals, rho is flat: nothing but noise, nothing removed
+    exact = observations.concatenate([
+        _observe(synthetic.photo(_lambert_table(0.5), truth, light, noise=0.02, rng=i),
+                 truth, light, view_index=i) for i, light in enumerate(synthetic.LIGHTS)])
+    _, exact_report = reliable.reliable_candidates(exact, reliable.ReliableSettings(
+        use_curvature=False, use_brightest=False))
+    assert exact_report.removed["monotonicity"] == 0
+
+
+def test_monotonicity_removes_samples_with_wrong_normals():
+    """rho = f(n.h) increasing; a few samples given a wrong (lower) n.h look too bright
+    for their n.h and must go, the rest must stay."""
+    rng = np.random.default_rng(0)
+    N = 2000
+    ndoth = rng.uniform(0.5, 1.0, N)
+    rho = np.exp(8.0 * (ndoth - 1.0))[:, None].repeat(3, axis=1)
+    wrong = rng.choice(N, 40, replace=False)
+    shown = ndoth.copy()
+    shown[wrong] = np.clip(shown[wrong] - 0.3, 0.5, None)
+    # directions with n.h = shown: n = z, h tilted by acos(shown) about y, l = v = h
+    theta = np.arccos(shown)
+    h = np.stack([np.sin(theta), np.zeros(N), np.cos(theta)], axis=1)
+    s = observations.Samples(
+        n=np.tile([0.0, 0.0, 1.0], (N, 1)), l=h, v=h, rho=rho, radiance=rho,
+        irradiance=np.ones((N, 3)), cells=np.zeros((N, 3), dtype=np.int64),
+        view=np.zeros(N, dtype=np.int64), pixel=np.zeros((N, 2), dtype=np.int64),
+        region=np.zeros(N, dtype=np.int64), curvature=np.zeros(N), shapes=((1, 1),))
+    resid = reliable.monotone_residuals(s)
+    flagged = np.flatnonzero(np.any(resid > 0.5, axis=1))
+    assert len(np.intersect1d(flagged, wrong)) >= 30  # most wrong normals caught
+    assert len(np.setdiff1d(flagged, wrong)) < 0.02 * N  # few good samples lost
+
+
+def test_brightest_peak_ignores_a_single_hot_pixel(scene):
+    truth, _ = scene
+    light = synthetic.LIGHTS[0] / np.linalg.norm(synthetic.LIGHTS[0])
+    spec = {"name": "gloss", "lobes": [{"type": "lambert", "albedo": 0.2}],
+            "coat": {"distribution": "ggx", "alpha": 0.1, "eta": 1.5}}
+    from brdf_reconstruct.core import database
+
+    photo = synthetic.photo(database.make_table(spec), truth, light)
+    hot = (5, 5)
+    photo[hot] = 100.0 * photo.max()
+    s = _observe(photo, truth, light)
+    (peak,) = reliable.brightest_peaks(s)
+    assert tuple(s.pixel[peak]) != hot
+    # the peak sits where the true normal is closest to h = normalize(l + v)
+    h = light + np.array([0.0, 0.0, 1.0])
+    h /= np.linalg.norm(h)
+    ndoth = truth.normal @ h
+    assert ndoth[tuple(s.pixel[peak])] >= np.percentile(ndoth, 99.5)
+    cand, report = reliable.reliable_candidates(s)
+    k = report.peaks[0]
+    h_own = (cand.l[k] + cand.v[k]) / np.linalg.norm(cand.l[k] + cand.v[k])
+    np.testing.assert_allclose(cand.n[k], h_own, atol=1e-12)  # Eq. (2): n := h
+    assert cand.cells[k, 0] == 0  # lands in theta_h = 0
+
+
+def test_trials_are_seeded(default_basis, scene):
+    truth, scan = scene
+    light = synthetic.LIGHTS[0]
+    photo = synthetic.photo(_lambert_table(0.3), truth, light)
+    s = _observe(photo, scan, light)
+    cand, report = reliable.reliable_candidates(s)
+    a = reliable.reconstruct_trials(default_basis, cand, 6, 3, 42, peaks=report.peaks)
+    b = reliable.reconstruct_trials(default_basis, cand, 6, 3, 42, peaks=report.peaks)
+    assert len(a) == 3
+    for (ra, ua), (rb, ub) in zip(a, b, strict=True):
+        np.testing.assert_array_equal(ua, ub)
+        np.testing.assert_array_equal(ra.table, rb.table)
+        assert np.all(np.isin(report.peaks, ua))
+    assert not np.array_equal(a[0][1], a[1][1])  # trials differ
