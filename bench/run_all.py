@@ -5,10 +5,12 @@ from __future__ import annotations
 import sys
 
 import core_bench
+import reliable_bench
 
 
 def main() -> int:
     core_bench.main(sys.argv[1:])
+    reliable_bench.main(sys.argv[1:])
     return 0
 
 
