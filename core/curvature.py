@@ -93,7 +93,7 @@ def _shift(a, dv, du, fill):
     return out
 
 
-def _window_nanmedian3(a):
+def window_nanmedian3(a):
     """Median of the finite values of ``a`` (H, W) over each 3x3 window; NaN if none."""
     stack = np.stack([_shift(a, dv, du, np.nan) for dv in (-1, 0, 1) for du in (-1, 0, 1)])
     stack.sort(axis=0)  # NaN sorts last
@@ -169,7 +169,7 @@ def curvatures(
     footprint = []
     for k in (0, 2):
         near = np.fmin(np.where(q_s[k], dist[k], np.nan), np.where(q_s[k + 1], dist[k + 1], np.nan))
-        footprint += [_window_nanmedian3(near)] * 2
+        footprint += [window_nanmedian3(near)] * 2
 
     # For unit normals the angle test reads 1 - |N_q - N_p|^2 / 2 >= cos(max angle).
     max_dn2 = 2.0 * (1.0 - np.cos(max_normal_angle))

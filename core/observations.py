@@ -103,6 +103,7 @@ def observe(
     mask: np.ndarray | None = None,
     view_index: int = 0,
     settings: ObservationSettings | None = None,
+    curvature_map: np.ndarray | None = None,
 ) -> Samples:
     """Samples from one photo.
 
@@ -112,7 +113,9 @@ def observe(
     point. region: (H, W) int, negative = background. camera_center: (3,)
     world space. light: (3,) world direction towards the light (normalised
     here). irradiance: scalar or RGB (3,), > 0. mask: optional (H, W) bool of
-    pixels to use. Raises ValueError for mismatched shapes or a bad light.
+    pixels to use. curvature_map: (H, W) the result of :func:`image_curvature` for
+    these G-buffers, to reuse it across photos taken from one camera (computed
+    here when None). Raises ValueError for mismatched shapes or a bad light.
     """
     settings = settings or ObservationSettings()
     photo = np.asarray(photo, dtype=np.float64)
@@ -145,13 +148,12 @@ def observe(
                    & np.isfinite(visibility) & (np.linalg.norm(np.nan_to_num(normal), axis=-1)
                                                 > 0.5))
     finite = geometry_ok & np.all(np.isfinite(photo), axis=-1)
-    H, _ = curvature.mean_curvature(
-        np.where(geometry_ok[..., None], normal, np.nan),
-        np.where(geometry_ok[..., None], position, np.nan),
-        mask=foreground & geometry_ok,
-        length_scale="pixel",
-    )
-    H = H * settings.curvature_span_px
+    if curvature_map is None:
+        H = image_curvature(normal, position, foreground, settings)
+    else:
+        H = np.asarray(curvature_map, dtype=np.float64)
+        if H.shape != shape:
+            raise ValueError(f"curvature_map must have shape {shape}, got {H.shape}")
 
     keep = foreground.copy()
     removed = {"background": int(np.count_nonzero(~foreground))}
@@ -194,6 +196,22 @@ def observe(
         shapes=(shape,),
         removed=removed,
     )
+
+
+def image_curvature(normal, position, mask=None, settings: ObservationSettings | None = None):
+    """(H, W) mean curvature of the G-buffers in radians of normal turn per
+    ``settings.curvature_span_px`` pixels; NaN where undefined (background,
+    non-finite geometry, silhouettes without a usable neighbour)."""
+    settings = settings or ObservationSettings()
+    normal = np.asarray(normal, dtype=np.float64)
+    position = np.asarray(position, dtype=np.float64)
+    ok = np.all(np.isfinite(normal), axis=-1) & np.all(np.isfinite(position), axis=-1)
+    if mask is not None:
+        ok &= np.asarray(mask, dtype=bool)
+    H, _ = curvature.mean_curvature(np.where(ok[..., None], normal, np.nan),
+                                    np.where(ok[..., None], position, np.nan),
+                                    mask=ok, length_scale="pixel")
+    return H * settings.curvature_span_px
 
 
 def concatenate(parts: list[Samples]) -> Samples:

@@ -14,8 +14,8 @@ assumptions keep the trustworthy samples, each stage switchable and counted:
    per 10 pixels, see ``core.observations``), or whose H is undefined, go.
 3. **Monotonicity (Eq. 1, after Higo et al. 2010).** Within a region,
    reflectance should not decrease as n.h grows. Per region and channel, an
-   isotonic (non-decreasing) fit of rho against n.h is made and samples whose
-   relative residual ``|rho - fit| / fit`` exceeds a tolerance in any channel go.
+   isotonic (non-decreasing) fit of ln(rho) against n.h is made and samples
+   further than a factor (1 + tolerance) from it in any channel go.
    It works on rho, not on radiance, so the cosine falloff is divided out: a
    Lambertian region has constant rho and is a flat isotonic fit, which its
    samples match to within their noise, so diffuse-dominated regions are not
@@ -36,6 +36,7 @@ from scipy.optimize import isotonic_regression
 
 from . import merl, reconstruct, sampling
 from .basis import Basis
+from .curvature import window_nanmedian3
 from .observations import Samples
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
@@ -48,7 +49,7 @@ class ReliableSettings:
     use_curvature: bool = True
     curvature_threshold: float = 0.2
     use_monotonicity: bool = True
-    monotonicity_tolerance: float = 0.5
+    monotonicity_tolerance: float = 1.0  # allowed factor (1 + tol) off the monotone fit
     use_brightest: bool = True
 
 
@@ -70,12 +71,10 @@ def brightness(samples: Samples) -> np.ndarray:
     score = np.empty(len(samples))
     for view in np.unique(samples.view):
         sel = np.flatnonzero(samples.view == view)
-        h, w = samples.shapes[view]
-        image = np.full((h + 2, w + 2), np.nan, dtype=np.float32)
-        r, c = samples.pixel[sel, 0] + 1, samples.pixel[sel, 1] + 1
+        image = np.full(samples.shapes[view], np.nan)
+        r, c = samples.pixel[sel, 0], samples.pixel[sel, 1]
         image[r, c] = lum[sel]
-        windows = np.stack([image[r + dr, c + dc] for dr in (-1, 0, 1) for dc in (-1, 0, 1)])
-        score[sel] = np.nanmedian(windows, axis=0)
+        score[sel] = window_nanmedian3(image)[r, c]
     return score
 
 
@@ -90,7 +89,14 @@ def brightest_peaks(samples: Samples) -> np.ndarray:
 
 
 def monotone_residuals(samples: Samples) -> np.ndarray:
-    """(N, 3) relative residual of rho against its region's isotonic fit in n.h."""
+    """(N, 3) log-ratio ``|ln(rho / fit)|`` of each sample to its region's monotone fit.
+
+    The fit is an isotonic (non-decreasing) regression of ``ln(rho + delta)``
+    against n.h, per region and channel. It is done in log space because rho
+    spans orders of magnitude on glossy materials: a least-squares fit on linear
+    rho is dragged up by a few highlight values and then flags hundreds of dim
+    samples. delta = 1e-3 x the region's median rho keeps black samples finite.
+    """
     h = samples.l + samples.v
     h /= np.linalg.norm(h, axis=1, keepdims=True)
     ndoth = np.sum(samples.n * h, axis=1)
@@ -99,10 +105,10 @@ def monotone_residuals(samples: Samples) -> np.ndarray:
         sel = np.flatnonzero(samples.region == region)
         order = sel[np.argsort(ndoth[sel], kind="stable")]
         for c in range(3):
-            y = samples.rho[order, c]
-            fit = isotonic_regression(y, increasing=True).x
-            scale = np.maximum(fit, 1e-6 * max(float(np.median(y)), 1e-12))
-            out[order, c] = np.abs(y - fit) / scale
+            rho = samples.rho[order, c]
+            delta = 1e-3 * max(float(np.median(rho)), 1e-12)
+            y = np.log(np.maximum(rho, 0.0) + delta)
+            out[order, c] = np.abs(y - isotonic_regression(y, increasing=True).x)
     return out
 
 
@@ -143,7 +149,7 @@ def reliable_candidates(
         kept_idx = np.flatnonzero(keep)
         resid = monotone_residuals(samples.subset(kept_idx))
         bad = np.zeros(len(samples), dtype=bool)
-        bad[kept_idx] = np.any(resid > settings.monotonicity_tolerance, axis=1)
+        bad[kept_idx] = np.any(resid > np.log1p(settings.monotonicity_tolerance), axis=1)
         stage = bad & ~exempt
         removed["monotonicity"] = int(np.count_nonzero(stage))
         keep &= ~stage
