@@ -269,9 +269,10 @@ def local_frame(n: np.ndarray):
 def to_local(n: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Express directions ``w`` (N, 3) in the local frame of normals ``n`` (N, 3)."""
     t, bt = local_frame(n)
-    return np.stack(
-        [np.sum(w * t, axis=-1), np.sum(w * bt, axis=-1), np.sum(w * n, axis=-1)], axis=-1
-    )
+    out = np.empty(np.broadcast_shapes(n.shape, w.shape))
+    for i, axis in enumerate((t, bt, n)):
+        out[..., i] = np.einsum("...i,...i->...", w, axis)
+    return out
 
 
 def evaluate(
