@@ -24,7 +24,7 @@ from brdf_reconstruct.core import basis, database, merl, metrics, reconstruct, r
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 SAMPLE_COUNTS = (1, 2, 5, 10, 20, 40)
-LIGHT = np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0)  # sphere light, camera space (+z = viewer)
+LIGHT = render.REFERENCE_LIGHT
 SPHERE_RES = 96
 # Alternatives to the defaults of reconstruct(), measured on the same optimal cells:
 # p chosen by evidence, and the reference code's fixed eta = 40 with p = min(n, k).

@@ -20,7 +20,7 @@ import numpy as np
 
 from brdf_reconstruct.core import basis, database, merl, metrics, reconstruct, render, sampling
 
-LIGHT = np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0)
+LIGHT = render.REFERENCE_LIGHT
 
 
 def main(argv=None) -> int:

@@ -35,7 +35,7 @@ from brdf_reconstruct.core import (
 )
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
-LIGHT = np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0)
+LIGHT = render.REFERENCE_LIGHT
 N_SAMPLES = 20
 N_TRIALS = 6
 VARIANTS = {

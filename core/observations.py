@@ -22,7 +22,7 @@ import dataclasses
 
 import numpy as np
 
-from . import curvature, merl
+from . import curvature, merl, render
 
 REMOVAL_REASONS = ("background", "nonfinite", "shadowed", "grazing", "saturated")
 
@@ -168,8 +168,7 @@ def observe(
     n = normal[rows, cols]
     n = n / np.linalg.norm(n, axis=1, keepdims=True)
     p = position[rows, cols]
-    v = np.asarray(camera_center, dtype=np.float64)[None, :] - p
-    v = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
+    v = render.view_directions(camera_center, p)
     cos_l = n @ light
     cos_v = np.sum(n * v, axis=1)
     grazing = (cos_l < settings.min_cosine) | (cos_v < settings.min_cosine)

@@ -11,6 +11,17 @@ import numpy as np
 
 from . import merl
 
+# The light of the benchmark spheres: camera space, +z towards the viewer.
+REFERENCE_LIGHT = np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0)
+
+
+def view_directions(camera_center: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Unit vectors (N, 3) from surface points (N, 3) towards a camera centre (3,),
+    same frame; zero where a point coincides with the centre."""
+    to_camera = np.asarray(camera_center, dtype=np.float64)[None, :] - points
+    length = np.linalg.norm(to_camera, axis=1, keepdims=True)
+    return np.divide(to_camera, length, out=np.zeros_like(to_camera), where=length > 0.0)
+
 
 def shade(
     table: np.ndarray,

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import merl
+from . import merl, render
 from .kl import kl_divergence
 
 AGGREGATES = ("mean", "sum")
@@ -149,14 +149,9 @@ def shade_gbuffer(
     lit = (cos > 0.0) & (visibility[mask] > 0.0)
     if not lit.any():
         return image
-    to_camera = camera_center - position[mask][lit]
-    d_len = np.linalg.norm(to_camera, axis=1, keepdims=True)
-    v = np.divide(to_camera, d_len, out=np.zeros_like(to_camera), where=d_len > 0.0)
-    n = n[lit]
-    rho = merl.evaluate(
-        table, n, np.broadcast_to(light, n.shape), v, interpolation=interpolation
-    )
-    radiance = rho * (cos[lit] * visibility[mask][lit])[:, None] * irradiance
+    v = render.view_directions(camera_center, position[mask][lit])
+    radiance = render.shade(table, n[lit], light, v, irradiance, interpolation)
+    radiance *= visibility[mask][lit][:, None]
     rows, cols = np.nonzero(mask)
     image[rows[lit], cols[lit]] = radiance
     return image

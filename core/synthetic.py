@@ -71,8 +71,7 @@ def photo(table: np.ndarray, truth: GBuffer, light: np.ndarray, irradiance=1.0,
     """(H, W, 3) linear photo of the true geometry shaded by ``table`` under a distant
     light, with optional multiplicative Gaussian noise of relative level ``noise``."""
     light = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
-    view = truth.camera_center[None, :] - truth.position[truth.mask]
-    view /= np.linalg.norm(view, axis=1, keepdims=True)
+    view = render.view_directions(truth.camera_center, truth.position[truth.mask])
     image = np.zeros(truth.mask.shape + (3,))
     image[truth.mask] = render.shade(table, truth.normal[truth.mask], light, view, irradiance)
     if noise:

@@ -5,7 +5,7 @@ import pytest
 
 from brdf_reconstruct.core import database, merl, metrics, reconstruct, render, sampling
 
-LIGHT = np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0)
+LIGHT = render.REFERENCE_LIGHT
 
 
 def _observe(table, cells):
