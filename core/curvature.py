@@ -78,7 +78,8 @@ def _check_inputs(normal, position, mask):
         m = m.astype(bool)
     else:
         m = np.ones(n.shape[:2], dtype=bool)
-    return n.astype(np.float64), p.astype(np.float64), m
+    # no copies: curvatures() never writes into these
+    return n.astype(np.float64, copy=False), p.astype(np.float64, copy=False), m
 
 
 def _shift(a, dv, du, fill):
@@ -93,14 +94,109 @@ def _shift(a, dv, du, fill):
     return out
 
 
+# A 9-input sorting network (Knuth's 25 comparators) pruned to what its five lowest
+# outputs need, which is all a median of at most nine values reads: (i, j, min_only)
+# puts min(s_i, s_j) in s_i and, unless min_only, max(s_i, s_j) in s_j. Checked on all
+# 2^9 zero-one inputs in tests/test_core_curvature.py (0-1 principle).
+_LOW5_OF_9 = ((0, 3, 0), (1, 7, 0), (2, 5, 0), (4, 8, 0), (0, 7, 0), (2, 4, 0), (3, 8, 0),
+              (5, 6, 0), (0, 2, 0), (1, 3, 0), (4, 5, 0), (7, 8, 1), (1, 4, 0), (3, 6, 1),
+              (5, 7, 1), (0, 1, 0), (2, 4, 0), (3, 5, 0), (2, 3, 0), (4, 5, 1), (1, 2, 0),
+              (3, 4, 0))
+_BAND = 16384  # pixels per band of window_nanmedian3: its nine planes stay in cache
+_CURVATURE_BAND = 32768  # pixels per band of rows in curvatures
+
+
+def _diff(a, dv, du):
+    """``_shift(a, dv, du, 0.0) - a`` for a shift along one axis, without the
+    shifted copy: the neighbour minus the pixel, ``0.0 - a`` where it is outside."""
+    out = np.empty_like(a)
+    if out.shape[0 if dv else 1] == 0:
+        return out
+    if dv == 0:
+        inner, edge = (slice(None), slice(0, -1)), (slice(None), -1)
+        nxt = (slice(None), slice(1, None))
+        if du < 0:
+            inner, edge, nxt = (slice(None), slice(1, None)), (slice(None), 0), inner
+    else:
+        inner, edge, nxt = slice(0, -1), -1, slice(1, None)
+        if dv < 0:
+            inner, edge, nxt = slice(1, None), 0, inner
+    np.subtract(a[nxt], a[inner], out=out[inner])
+    np.subtract(0.0, a[edge], out=out[edge])
+    return out
+
+
+def _mirror_norms(d_fwd, d_back, fwd_sq, axis):
+    """``_dot(d_back, d_back)`` from ``fwd_sq = _dot(d_fwd, d_fwd)``, where d_back is
+    the backward difference along ``axis`` (0 rows, 1 columns) and d_fwd the forward
+    one: inside the image d_back is d_fwd of the previous pixel negated, exactly,
+    and squares drop the sign, so only the first row or column is computed."""
+    out = np.empty_like(fwd_sq)
+    if axis == 1:
+        out[:, 1:] = fwd_sq[:, :-1]
+        out[:, :1] = _dot(d_back[:, :1], d_back[:, :1])
+    else:
+        out[1:] = fwd_sq[:-1]
+        out[:1] = _dot(d_back[:1], d_back[:1])
+    return out
+
+
 def window_nanmedian3(a):
-    """Median of the finite values of ``a`` (H, W) over each 3x3 window; NaN if none."""
-    stack = np.stack([_shift(a, dv, du, np.nan) for dv in (-1, 0, 1) for du in (-1, 0, 1)])
-    stack.sort(axis=0)  # NaN sorts last
-    count = np.isfinite(stack).sum(axis=0)
-    lo = np.take_along_axis(stack, np.maximum(count - 1, 0)[None] // 2, axis=0)[0]
-    hi = np.take_along_axis(stack, (count // 2)[None], axis=0)[0]
-    hi = np.where(count > 0, hi, np.nan)
+    """Median of the finite values of ``a`` (H, W) over each 3x3 window; NaN if none.
+
+    With k finite values the median is the mean of the sorted values number
+    (k - 1) // 2 and k // 2 (0-based), as ``np.nanmedian``. Computed with a
+    sorting network on the nine shifted planes (NaN as +inf: last, uncounted), in
+    bands of rows; the same values as a full sort of the 3x3 stack.
+    """
+    a = np.asarray(a)
+    h, w = a.shape
+    pad = np.full((h + 2, w + 2), np.inf, dtype=a.dtype)
+    pad[1:-1, 1:-1] = a
+    finite = np.isfinite(pad).view(np.uint8)
+    np.copyto(pad, np.inf, where=np.isnan(pad))  # -inf sorts first, uncounted, as in a sort
+    out = np.empty((h, w), dtype=np.result_type(a.dtype, 0.5))
+    band = max(1, _BAND // max(w, 1))
+    for r0 in range(0, h, band):
+        r1 = min(r0 + band, h)
+        s = [pad[r0 + dv:r1 + dv, du:du + w] for dv in (0, 1, 2) for du in (0, 1, 2)]
+        f = finite[r0:r1 + 2]
+        c = f[:, :-2] + f[:, 1:-1]
+        c += f[:, 2:]
+        count = c[:-2] + c[1:-1]
+        count += c[2:]
+        for i, j, min_only in _LOW5_OF_9:
+            if min_only:
+                s[i] = np.minimum(s[i], s[j])
+            else:
+                s[i], s[j] = np.minimum(s[i], s[j]), np.maximum(s[i], s[j])
+        # sorted values number (count - 1) // 2 and count // 2: both 4 where count is 9
+        lo, hi = s[4].copy(), s[4].copy()
+        part = count < 9
+        if part.any():
+            low = [x[part] for x in s[:5]]
+            lo[part] = np.choose((np.maximum(count[part], 1) - 1) >> 1, low)
+            hi[part] = np.choose(count[part] >> 1, low)
+        out[r0:r1] = np.where(count > 0, 0.5 * (lo + hi), np.nan)
+    return out
+
+
+def window_nanmedian3_at(a, rows, cols):
+    """``window_nanmedian3(a)[rows, cols]`` at those pixels only (bit for bit).
+
+    a: (H, W); rows, cols: (K,) int, inside the image. Returns (K,).
+    """
+    a = np.asarray(a)
+    h, w = a.shape
+    pad = np.full((h + 2, w + 2), np.nan, dtype=a.dtype)
+    pad[1:-1, 1:-1] = a
+    centre = (np.asarray(rows) + 1) * (w + 2) + (np.asarray(cols) + 1)
+    offsets = np.array([dv * (w + 2) + du for dv in (-1, 0, 1) for du in (-1, 0, 1)])
+    stack = pad.reshape(-1)[centre[:, None] + offsets]  # (K, 9)
+    stack.sort(axis=1)  # NaN sorts last
+    count = np.isfinite(stack).sum(axis=1)
+    lo = np.take_along_axis(stack, (np.maximum(count - 1, 0) // 2)[:, None], axis=1)[:, 0]
+    hi = np.take_along_axis(stack, (count // 2)[:, None], axis=1)[:, 0]
     return np.where(count > 0, 0.5 * (lo + hi), np.nan)
 
 
@@ -138,6 +234,12 @@ def curvatures(
     ``valid`` (H, W) bool is False. Principal curvatures are
     ``H +- sqrt(max(H^2 - K, 0))``.
     """
+    return _curvatures(normal, position, mask, discontinuity, length_scale, max_normal_angle)
+
+
+def _curvatures(normal, position, mask, discontinuity, length_scale, max_normal_angle,
+                gaussian=True):
+    """`curvatures`; with ``gaussian=False`` K is not computed (None)."""
     n, p, m = _check_inputs(normal, position, mask)
     if not (np.isscalar(discontinuity) and discontinuity > 0):
         raise ValueError(f"discontinuity must be a positive number, got {discontinuity!r}.")
@@ -148,21 +250,53 @@ def curvatures(
         )
     if not per_pixel and not (np.isfinite(length_scale) and length_scale > 0):
         raise ValueError(f"length_scale must be a positive length, got {length_scale!r}.")
+    args = (discontinuity, per_pixel, length_scale, max_normal_angle, gaussian)
+    h, w = m.shape
+    rows = max(1, _CURVATURE_BAND // max(w, 1))
+    if h <= rows + 4:
+        return _curvature_band(n, p, m, *args)
+    # Bands of rows, each with the two rows either side that its footprints read
+    # (a footprint is the 3x3 median of the steps to the neighbours): the same
+    # values as the whole image at once, with the temporaries in cache.
+    mean, valid = np.empty((h, w)), np.empty((h, w), dtype=bool)
+    gauss = np.empty((h, w)) if gaussian else None
+    for r0 in range(0, h, rows):
+        r1 = min(r0 + rows, h)
+        lo, hi = max(r0 - 2, 0), min(r1 + 2, h)
+        parts = _curvature_band(n[lo:hi], p[lo:hi], m[lo:hi], *args)
+        for out, part in zip((mean, gauss, valid), parts, strict=True):
+            if out is not None:
+                out[r0:r1] = part[r0 - lo:r1 - lo]
+    return mean, gauss, valid
 
+
+def _curvature_band(n, p, m, discontinuity, per_pixel, length_scale, max_normal_angle,
+                    gaussian):
+    """The curvatures of the G-buffer rows given (their first and last rows lack
+    their outer neighbours); arguments checked by the caller."""
     with np.errstate(invalid="ignore", over="ignore"):
         length = np.sqrt(_dot(n, n))
-        sample = m & np.isfinite(length) & np.all(np.isfinite(p), axis=-1)
+        finite_p = np.isfinite(p)
+        sample = m & np.isfinite(length) & finite_p[..., 0] & finite_p[..., 1] & finite_p[..., 2]
         sample &= length >= _MIN_NORMAL_LENGTH
     # Zero the non-samples so that no NaN or Inf enters any arithmetic below.
-    n = np.where(sample[..., None], n / np.where(sample, length, 1.0)[..., None], 0.0)
-    p = np.where(sample[..., None], p, 0.0)
+    if sample.all():  # the same values, without the selects
+        n = n / length[..., None]
+    else:
+        n = np.where(sample[..., None], n / np.where(sample, length, 1.0)[..., None], 0.0)
+        p = np.where(sample[..., None], p, 0.0)
 
     # Differences to the four direct neighbours: (dv, du) = right, left, down, up.
     offsets = ((0, 1), (0, -1), (1, 0), (-1, 0))
-    dp = [_shift(p, dv, du, 0.0) - p for dv, du in offsets]
-    dn = [_shift(n, dv, du, 0.0) - n for dv, du in offsets]
+    dp = [_diff(p, dv, du) for dv, du in offsets]
+    dn = [_diff(n, dv, du) for dv, du in offsets]
     q_s = [_shift(sample, dv, du, False) & sample for dv, du in offsets]
-    dist = [np.sqrt(_dot(d, d)) for d in dp]
+    dist, dn2 = [], []  # |dP| and |dN|^2 per link; left/up mirror right/down
+    for k, axis in ((0, 1), (2, 0)):
+        for d, out in ((dp, dist), (dn, dn2)):
+            sq = _dot(d[k], d[k])
+            out += [sq, _mirror_norms(d[k], d[k + 1], sq, axis)]
+    dist = [np.sqrt(d) for d in dist]
 
     # Robust footprint per image axis: shorter step along it, then a 3x3 median
     # (module doc). Per axis, so that a slope stretched along v is not a jump.
@@ -175,8 +309,8 @@ def curvatures(
     max_dn2 = 2.0 * (1.0 - np.cos(max_normal_angle))
     with np.errstate(invalid="ignore"):  # NaN footprint compares False: no link
         link = [
-            s & (d <= discontinuity * fp) & (_dot(e, e) <= max_dn2)
-            for s, d, e, fp in zip(q_s, dist, dn, footprint, strict=True)
+            s & (d <= discontinuity * fp) & (e2 <= max_dn2)
+            for s, d, e2, fp in zip(q_s, dist, dn2, footprint, strict=True)
         ]
 
     # Central differences where both neighbours along an axis are linked,
@@ -184,10 +318,11 @@ def curvatures(
     w = [l * np.where(link[k ^ 1], 0.5, 1.0) for k, l in enumerate(link)]
     has_u = link[0] | link[1]
     has_v = link[2] | link[3]
-    pu = w[0][..., None] * dp[0] - w[1][..., None] * dp[1]
-    pv = w[2][..., None] * dp[2] - w[3][..., None] * dp[3]
-    nu = w[0][..., None] * dn[0] - w[1][..., None] * dn[1]
-    nv = w[2][..., None] * dn[2] - w[3][..., None] * dn[3]
+    # pu = w0 dp0 - w1 dp1 and so on, in place (the differences are not used again)
+    pu, pv, nu, nv = (
+        np.subtract(np.multiply(w[a][..., None], d[a], out=d[a]),
+                    np.multiply(w[a + 1][..., None], d[a + 1], out=d[a + 1]), out=d[a])
+        for d, a in ((dp, 0), (dp, 2), (dn, 0), (dn, 2)))
 
     # M = (J^T J)^-1 J^T K with the closed-form 2x2 inverse.
     aa, ab, bb = _dot(pu, pu), _dot(pu, pv), _dot(pv, pv)
@@ -196,15 +331,17 @@ def curvatures(
     inv_det = 1.0 / np.where(valid, det, 1.0)
     a_nu, a_nv, b_nu, b_nv = _dot(pu, nu), _dot(pu, nv), _dot(pv, nu), _dot(pv, nv)
     m11 = (bb * a_nu - ab * b_nu) * inv_det
-    m12 = (bb * a_nv - ab * b_nv) * inv_det
-    m21 = (aa * b_nu - ab * a_nu) * inv_det
     m22 = (aa * b_nv - ab * a_nv) * inv_det
     mean = 0.5 * (m11 + m22)
-    gauss = m11 * m22 - m12 * m21
 
     # The less stretched axis approximates the footprint across the view ray.
     scale = np.fmin(footprint[0], footprint[2]) if per_pixel else float(length_scale)
     mean = np.where(valid, mean * scale, np.nan)
+    if not gaussian:
+        return mean, None, valid
+    m12 = (bb * a_nv - ab * b_nv) * inv_det
+    m21 = (aa * b_nu - ab * a_nu) * inv_det
+    gauss = m11 * m22 - m12 * m21
     gauss = np.where(valid, gauss * scale**2, np.nan)
     return mean, gauss, valid
 
@@ -222,9 +359,9 @@ def mean_curvature(
     H is in 1 / scene unit times ``length_scale`` (positive where convex with
     outward normals), NaN where ``valid`` is False.
     """
-    mean, _, valid = curvatures(
-        normal, position, mask, discontinuity=discontinuity, length_scale=length_scale, **kw
-    )
+    kw = {"max_normal_angle": np.pi / 3, **kw}
+    mean, _, valid = _curvatures(normal, position, mask, discontinuity, length_scale,
+                                 gaussian=False, **kw)
     return mean, valid
 
 

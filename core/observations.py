@@ -22,7 +22,7 @@ import dataclasses
 
 import numpy as np
 
-from . import curvature, merl, render
+from . import curvature, merl
 
 REMOVAL_REASONS = ("background", "nonfinite", "shadowed", "grazing", "saturated")
 
@@ -75,8 +75,15 @@ class Samples:
 
     def subset(self, keep: np.ndarray) -> Samples:
         """The samples where ``keep`` (bool (N,) or indices) selects; counts kept."""
-        fields = {f.name: getattr(self, f.name)[keep] for f in dataclasses.fields(self)
-                  if f.name not in ("shapes", "removed")}
+        index = np.asarray(keep)
+        if index.dtype == bool and index.shape == (len(self),):
+            index = np.flatnonzero(index)
+        if index.dtype.kind in "iu":
+            # np.take along the first axis: the rows fancy indexing gives (negative
+            # indices wrap, out-of-range ones raise), several times faster on (N, 3).
+            fields = {f: np.take(getattr(self, f), index, axis=0) for f in _ARRAY_FIELDS}
+        else:  # anything else (an empty list, say): plain indexing
+            fields = {f: getattr(self, f)[keep] for f in _ARRAY_FIELDS}
         return Samples(**fields, shapes=self.shapes, removed=dict(self.removed))
 
     def with_normals(self, index: np.ndarray, normals: np.ndarray) -> Samples:
@@ -86,9 +93,12 @@ class Samples:
         rho, cells = self.rho.copy(), self.cells.copy()
         cos_l = np.maximum(np.sum(normals * self.l[index], axis=1), 1e-12)[:, None]
         rho[index] = self.radiance[index] / (self.irradiance[index] * cos_l)
-        cells[index] = merl.cells_from_dirs(merl.to_local(normals, self.l[index]),
-                                            merl.to_local(normals, self.v[index]))
+        cells[index] = merl.cells_about_normals(normals, self.l[index], self.v[index])
         return dataclasses.replace(self, n=n, rho=rho, cells=cells)
+
+
+_ARRAY_FIELDS = tuple(f.name for f in dataclasses.fields(Samples)
+                      if f.name not in ("shapes", "removed"))
 
 
 def observe(
@@ -144,10 +154,18 @@ def observe(
         if mask.shape != shape:
             raise ValueError(f"mask must have shape {shape}, got {mask.shape}")
         foreground &= mask
-    geometry_ok = (np.all(np.isfinite(normal), axis=-1) & np.all(np.isfinite(position), axis=-1)
-                   & np.isfinite(visibility) & (np.linalg.norm(np.nan_to_num(normal), axis=-1)
-                                                > 0.5))
-    finite = geometry_ok & np.all(np.isfinite(photo), axis=-1)
+    # Per-pixel work goes in blocks of rows (_ROWS): its temporaries stay in cache
+    # instead of being fresh image-sized arrays. Row gathers use np.take, several times
+    # faster than fancy indexing of (H, W, 3) arrays, with the same values.
+    normal_rows, position_rows = normal.reshape(-1, 3), position.reshape(-1, 3)
+    photo_rows, visibility_flat = photo.reshape(-1, 3), visibility.reshape(-1)
+    finite = np.empty(shape, dtype=bool)
+    with np.errstate(invalid="ignore", over="ignore"):  # non-finite rows are dropped anyway
+        for b in _blocks(finite.size):
+            finite.reshape(-1)[b] = (
+                _all_finite(normal_rows[b]) & _all_finite(position_rows[b])
+                & np.isfinite(visibility_flat[b]) & (_norm(normal_rows[b]) > 0.5)
+                & _all_finite(photo_rows[b]))
     if curvature_map is None:
         H = image_curvature(normal, position, foreground, settings)
     else:
@@ -164,37 +182,89 @@ def observe(
     removed["shadowed"] = int(np.count_nonzero(stage))
     keep &= ~stage
 
-    rows, cols = np.nonzero(keep)
-    n = normal[rows, cols]
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    p = position[rows, cols]
-    v = render.view_directions(camera_center, p)
-    cos_l = n @ light
-    cos_v = np.sum(n * v, axis=1)
-    grazing = (cos_l < settings.min_cosine) | (cos_v < settings.min_cosine)
+    flat = np.flatnonzero(keep)  # row-major, as np.nonzero
+    n = np.take(normal_rows, flat, axis=0)
+    v = np.take(position_rows, flat, axis=0)
+    camera_center = np.asarray(camera_center, dtype=np.float64)
+    for b in _blocks(len(flat)):
+        nb, vb = n[b], v[b]
+        nb /= _norm(nb)[:, None]
+        # render.view_directions, with the same rounding (tested equal)
+        np.subtract(camera_center[None, :], vb, out=vb)
+        length = _norm(vb)[:, None]
+        np.divide(vb, length, out=vb, where=length > 0.0)
+        vb[~(length[:, 0] > 0.0)] = 0.0  # a point at the camera centre
+    cos_l = n @ light  # BLAS, over all rows at once as before (its rounding may depend on it)
+    grazing = cos_l < settings.min_cosine
+    for b in _blocks(len(flat)):
+        grazing[b] |= _dot(n[b], v[b]) < settings.min_cosine
     removed["grazing"] = int(np.count_nonzero(grazing))
-    radiance = photo[rows, cols]
-    saturated = np.zeros(len(rows), dtype=bool)
+    saturated = None
     if settings.clip_level is not None:
-        saturated = np.any(radiance >= settings.clip_level, axis=1) & ~grazing
-    removed["saturated"] = int(np.count_nonzero(saturated))
-    ok = ~grazing & ~saturated
+        saturated = np.any(np.take(photo_rows, flat, axis=0) >= settings.clip_level,
+                           axis=1) & ~grazing
+    removed["saturated"] = int(np.count_nonzero(saturated)) if saturated is not None else 0
+    ok = ~grazing if saturated is None else ~grazing & ~saturated
 
-    n, v, radiance, cos_l = n[ok], v[ok], radiance[ok], cos_l[ok]
-    rows, cols = rows[ok], cols[ok]
-    l = np.broadcast_to(light, n.shape).copy()  # noqa: E741
-    rho = radiance / (irradiance[None, :] * cos_l[:, None])
-    cells = merl.cells_from_dirs(merl.to_local(n, l), merl.to_local(n, v))
+    if not ok.all():
+        sel = np.flatnonzero(ok)
+        flat, n, v, cos_l = flat[sel], np.take(n, sel, axis=0), np.take(v, sel, axis=0), cos_l[sel]
+    radiance = np.take(photo_rows, flat, axis=0)
+    count = len(flat)
+    l = np.empty((count, 3))  # noqa: E741
+    l[:] = light
+    rho = np.empty((count, 3))
+    for b in _blocks(count):  # radiance / (irradiance cos_l)
+        np.divide(radiance[b], np.multiply(irradiance[None, :], cos_l[b, None]), out=rho[b])
+    cells = merl.cells_about_normals(n, light, v)
+    pixel = np.empty((count, 2), dtype=np.int64)
+    np.divmod(flat, shape[1], out=(pixel[:, 0], pixel[:, 1]))
+    irr = np.empty((count, 3))
+    irr[:] = irradiance
     return Samples(
         n=n, l=l, v=v, rho=rho, radiance=radiance,
-        irradiance=np.broadcast_to(irradiance, rho.shape).copy(), cells=cells,
-        view=np.full(len(rows), view_index, dtype=np.int64),
-        pixel=np.stack([rows, cols], axis=1).astype(np.int64),
-        region=region[rows, cols].astype(np.int64),
-        curvature=H[rows, cols],
+        irradiance=irr, cells=cells,
+        view=np.full(count, view_index, dtype=np.int64),
+        pixel=pixel,
+        region=np.take(region.reshape(-1), flat).astype(np.int64, copy=False),
+        curvature=np.take(H.reshape(-1), flat),
         shapes=(shape,),
         removed=removed,
     )
+
+
+_ROWS = 16384  # rows per block of the per-pixel work in observe
+
+
+def _blocks(count):
+    """Slices of ``_ROWS`` consecutive rows covering ``count`` rows."""
+    return (slice(start, start + _ROWS) for start in range(0, count, _ROWS))
+
+
+def _all_finite(a):
+    """(...) bool: every component of ``a`` (..., 3) is finite (np.all(isfinite, -1))."""
+    f = np.isfinite(a)
+    return f[..., 0] & f[..., 1] & f[..., 2]
+
+
+def _norm(a):
+    """(...) Euclidean length of ``a`` (..., 3), rounded as np.linalg.norm(a, axis=-1)
+    (sum (x0^2 + x1^2) + x2^2, then sqrt), so results are bit for bit the same."""
+    out = a[..., 0] * a[..., 0]
+    square = a[..., 1] * a[..., 1]
+    out += square
+    out += np.multiply(a[..., 2], a[..., 2], out=square)
+    return np.sqrt(out, out=out)
+
+
+def _dot(a, b):
+    """(...) dot products of rows of ``a`` and ``b`` (..., 3), rounded as
+    np.sum(a * b, axis=-1): (a0 b0 + a1 b1) + a2 b2."""
+    out = a[..., 0] * b[..., 0]
+    product = a[..., 1] * b[..., 1]
+    out += product
+    out += np.multiply(a[..., 2], b[..., 2], out=product)
+    return out
 
 
 def image_curvature(normal, position, mask=None, settings: ObservationSettings | None = None):
@@ -204,21 +274,38 @@ def image_curvature(normal, position, mask=None, settings: ObservationSettings |
     settings = settings or ObservationSettings()
     normal = np.asarray(normal, dtype=np.float64)
     position = np.asarray(position, dtype=np.float64)
-    ok = np.all(np.isfinite(normal), axis=-1) & np.all(np.isfinite(position), axis=-1)
+    ok = _all_finite(normal) & _all_finite(position)
     if mask is not None:
         ok &= np.asarray(mask, dtype=bool)
-    H, _ = curvature.mean_curvature(np.where(ok[..., None], normal, np.nan),
-                                    np.where(ok[..., None], position, np.nan),
-                                    mask=ok, length_scale="pixel")
+    if not ok.all():  # (else the same arrays, without the copies)
+        normal = np.where(ok[..., None], normal, np.nan)
+        position = np.where(ok[..., None], position, np.nan)
+    H, _ = curvature.mean_curvature(normal, position, mask=ok, length_scale="pixel")
     return H * settings.curvature_span_px
+
+
+def group_index(labels: np.ndarray) -> tuple[np.ndarray, int]:
+    """Rank of each label among the distinct labels, ascending, and their number:
+    ``np.unique(labels, return_inverse=True)[1]`` and its length, for (N,) int
+    labels (regions, views). Without a sort when the labels are small and
+    non-negative (a count per value instead)."""
+    labels = np.asarray(labels)
+    if len(labels) and labels.min() >= 0 and labels.max() <= 4 * len(labels) + 1024:
+        present = np.bincount(labels) > 0
+        count = int(np.count_nonzero(present))
+        if count == 1:
+            return np.zeros(len(labels), dtype=np.intp), 1
+        return (np.cumsum(present) - 1)[labels], count
+    _, rank = np.unique(labels, return_inverse=True)
+    return rank.reshape(-1), int(rank.max()) + 1 if len(rank) else 0
 
 
 def concatenate(parts: list[Samples]) -> Samples:
     """One sample set from several photos (views keep the index each part carries)."""
     if not parts:
         raise ValueError("no observations to concatenate")
-    fields = {f.name: np.concatenate([getattr(s, f.name) for s in parts])
-              for f in dataclasses.fields(Samples) if f.name not in ("shapes", "removed")}
+    fields = {f: np.concatenate([getattr(s, f) for s in parts])
+              for f in _ARRAY_FIELDS}
     shapes = tuple(sh for s in parts for sh in s.shapes)
     removed = {k: sum(s.removed.get(k, 0) for s in parts) for k in REMOVAL_REASONS}
     return Samples(**fields, shapes=shapes, removed=removed)

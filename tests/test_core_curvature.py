@@ -415,3 +415,73 @@ def test_one_megapixel_is_vectorised():
         times.append(time.perf_counter() - t0)
     print(f"1000 x 1000: first {times[0]:.3f} s, second {times[1]:.3f} s, {v.sum()} valid")
     assert v.sum() > 100_000
+
+
+# ------------------------------------------------------------------ window medians
+def test_median_network_sorts_the_five_lowest_of_nine():
+    """0-1 principle: a comparator network that sorts every 0/1 input sorts every input."""
+    import itertools
+
+    for bits in itertools.product((0, 1), repeat=9):
+        x = list(bits)
+        for i, j, min_only in curvature._LOW5_OF_9:
+            lo, hi = min(x[i], x[j]), max(x[i], x[j])
+            x[i] = lo
+            if not min_only:
+                x[j] = hi
+        assert x[:5] == sorted(bits)[:5]
+
+
+@pytest.mark.parametrize("shape", [(37, 53), (1, 1), (1, 40), (40, 1), (3, 2), (300, 7)])
+def test_window_nanmedian3_matches_nanmedian(shape):
+    import warnings
+
+    rng = np.random.default_rng(sum(shape))
+    a = rng.random(shape)
+    a[rng.random(shape) < 0.3] = np.nan
+    a[: shape[0] // 2, : shape[1] // 3] = np.nan
+    if a.size > 4:
+        a.flat[rng.choice(a.size, a.size // 4)] = 0.25  # ties
+    pad = np.pad(a, 1, constant_values=np.nan)
+    h, w = shape
+    stack = np.stack([pad[dv:dv + h, du:du + w] for dv in range(3) for du in range(3)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows
+        ref = np.nanmedian(stack, axis=0)
+    got = curvature.window_nanmedian3(a)
+    np.testing.assert_array_equal(got, ref)
+    rows, cols = np.nonzero(np.ones(shape, dtype=bool))
+    np.testing.assert_array_equal(curvature.window_nanmedian3_at(a, rows, cols), ref.ravel())
+    assert curvature.window_nanmedian3(a.astype(np.float32)).dtype == np.float32
+
+
+def test_mean_curvature_is_the_mean_of_curvatures():
+    rng = np.random.default_rng(3)
+    o, d = _camera([0, -5, 1], np.zeros(3), (60, 70), focal=80.0)
+    normal, position, hit = _gbuffer(_sphere(o, d, np.zeros(3), 1.0))
+    mask = hit >= 0
+    normal[rng.random(normal.shape[:2]) < 0.02] = np.nan
+    for scale in (1.0, "pixel"):
+        mean, gauss, valid = curvature.curvatures(normal, position, mask, length_scale=scale)
+        h, v = curvature.mean_curvature(normal, position, mask, length_scale=scale)
+        np.testing.assert_array_equal(h, mean)
+        np.testing.assert_array_equal(v, valid)
+        assert gauss.shape == mean.shape
+
+
+@pytest.mark.parametrize("band", [1, 150, 1000])
+def test_bands_of_rows_give_the_whole_image_result(monkeypatch, band):
+    """curvatures works on bands of rows (plus two halo rows each side): the same
+    values, bit for bit, as one pass over the image, also with holes, silhouettes
+    and depth jumps crossing the band edges."""
+    rng = np.random.default_rng(4)
+    o, d = _camera([0, -5, 1], np.zeros(3), (47, 53), focal=60.0)
+    normal, position, hit = _gbuffer(_sphere(o, d, np.zeros(3), 1.0),
+                                     _sphere(o, d, np.array([0.6, 1.0, 0.3]), 0.5))
+    normal[rng.random(normal.shape[:2]) < 0.03] = np.nan
+    mask = (hit >= 0) & (rng.random(hit.shape) > 0.02)
+    whole = curvature.curvatures(normal, position, mask, length_scale="pixel")
+    monkeypatch.setattr(curvature, "_CURVATURE_BAND", band)
+    banded = curvature.curvatures(normal, position, mask, length_scale="pixel")
+    for a, b in zip(whole, banded, strict=True):
+        np.testing.assert_array_equal(a, b)

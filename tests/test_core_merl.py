@@ -242,3 +242,76 @@ def test_fill_unmeasured_keeps_measured_cells():
     filled = merl.fill_unmeasured(np.where(holes, np.nan, table))
     assert np.all(np.isfinite(filled))
     np.testing.assert_array_equal(filled[~holes], table[~holes])
+
+
+# ------------------------------------------------------------ fused per-sample binning
+def _unit(x):
+    return x / np.linalg.norm(x, axis=-1, keepdims=True)
+
+
+def test_einsum_dot_rounding_is_reproduced():
+    """cells_about_normals relies on np.einsum rounding a 3-term dot product as
+    (a0 b0 + a2 b2) + a1 b1; if numpy changes that, this flags it."""
+    rng = np.random.default_rng(11)
+    a, b = rng.normal(size=(2, 50_000, 3))
+    ref = np.einsum("...i,...i->...", a, b)
+    np.testing.assert_array_equal(merl._dot_einsum(a.T, b.T), ref)
+    np.testing.assert_array_equal(merl._dot_einsum(a[0], b.T), np.einsum("i,...i->...", a[0], b))
+
+
+def test_cells_about_normals_equals_to_local_then_cells_from_dirs():
+    """Bit for bit the same bins as the step-by-step path, including the poles,
+    z = -0, wi = -wo (degenerate half vector), wi = wo, a constant light and a
+    length that is not a multiple of the block size."""
+    rng = np.random.default_rng(12)
+    count = 3 * merl._CHUNK + 17
+    n = _unit(rng.normal(size=(count, 3)))
+    n[:50] = [0.0, 0.0, 1.0]
+    n[50:100] = [0.0, 0.0, -1.0]
+    n[100:150, 2] = -0.0
+    n[100:150] = _unit(n[100:150])
+    wi = _unit(rng.normal(size=(count, 3)))
+    wo = _unit(rng.normal(size=(count, 3)))
+    wo[200:300] = -wi[200:300]
+    wo[300:400] = wi[300:400]
+    wo[400:450] = n[400:450]
+    ref = merl.cells_from_dirs(merl.to_local(n, wi), merl.to_local(n, wo))
+    np.testing.assert_array_equal(merl.cells_about_normals(n, wi, wo), ref)
+    light = _unit(np.array([0.5, 0.3, 0.81]))
+    ref = merl.cells_from_dirs(merl.to_local(n, np.broadcast_to(light, n.shape)),
+                               merl.to_local(n, wo))
+    got = merl.cells_about_normals(n, light, wo)
+    assert got.dtype == np.int64 and got.shape == (count, 3)
+    np.testing.assert_array_equal(got, ref)
+    assert merl.cells_about_normals(n[:0], light, wo[:0]).shape == (0, 3)
+
+
+def test_cells_about_normals_at_bin_edges_and_poles():
+    """The fast rotation is guarded: pairs built at (and within 1e-15 .. 1e-9 of)
+    theta_h / theta_d / phi_d bin edges, in-plane pairs (phi_d at 0 or pi), l ~ v
+    and n ~ h, in random frames, bin exactly as the trigonometric path does."""
+    rng = np.random.default_rng(13)
+    k = 60_000
+    idx = [rng.integers(0, m + 1, k) for m in (90, 90, 180)]
+    jitter = [rng.choice([0.0, 1e-15, -1e-15, 1e-12, -1e-9, 0.5], size=k) for _ in range(3)]
+    th = np.clip(((idx[0] + jitter[0]) / 90) ** 2 * (np.pi / 2), 0.0, np.pi / 2)
+    td = np.clip((idx[1] + jitter[1]) / 90 * (np.pi / 2), 0.0, np.pi)
+    pd = (idx[2] + jitter[2]) / 180 * np.pi
+    wi, wo = merl.dirs_from_half_diff(th, td, pd)
+    q = _unit(rng.normal(size=(k, 4)))  # random rotations (unit quaternions)
+    w, x, y, z = q.T
+    R = np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+    ], axis=1)
+    cases = [(np.tile([0.0, 0.0, 1.0], (k, 1)), wi, wo),
+             (R[:, :, 2].copy(), np.einsum("kij,kj->ki", R, wi), np.einsum("kij,kj->ki", R, wo))]
+    n = _unit(rng.normal(size=(k, 3)))
+    a = _unit(rng.normal(size=(k, 3)))
+    eps = 10.0 ** rng.uniform(-12, -2, (k, 1))
+    b = _unit(a + eps * rng.normal(size=(k, 3)))
+    cases += [(n, a, b), (_unit(_unit(a + b) + eps * rng.normal(size=(k, 3))), a, b)]
+    for n, wi, wo in cases:
+        ref = merl.cells_from_dirs(merl.to_local(n, wi), merl.to_local(n, wo))
+        np.testing.assert_array_equal(merl.cells_about_normals(n, wi, wo), ref)

@@ -240,3 +240,127 @@ def test_curvature_map_reuse_gives_identical_samples(scene):
     b = _observe(photo, scan, light, curvature_map=H)
     np.testing.assert_array_equal(a.curvature, b.curvature)
     np.testing.assert_array_equal(a.rho, b.rho)
+
+
+# ------------------------------------------------- fast paths against plain references
+def _bare_samples(rng, shapes, fill, n_regions, radiance=None):
+    """Samples on random pixels of views of ``shapes`` (random order), random regions."""
+    view, pixel = [], []
+    for v, shape in enumerate(shapes):
+        r, c = np.nonzero(rng.random(shape) < fill)
+        view.append(np.full(len(r), v))
+        pixel.append(np.stack([r, c], axis=1))
+    view, pixel = np.concatenate(view), np.concatenate(pixel)
+    perm = rng.permutation(len(view))
+    N = len(view)
+    z = np.zeros((N, 3))
+    if radiance is None:
+        radiance = rng.integers(0, 4, (N, 3)) / 4.0  # many ties in luminance
+    return observations.Samples(
+        n=z, l=z, v=z, rho=z, radiance=radiance, irradiance=z,
+        cells=np.zeros((N, 3), dtype=np.int64), view=view[perm].astype(np.int64),
+        pixel=pixel[perm].astype(np.int64),
+        region=rng.integers(0, n_regions, N).astype(np.int64), curvature=np.zeros(N),
+        shapes=tuple(shapes))
+
+
+def _peaks_reference(s):
+    score = reliable.brightness(s)
+    return np.array([np.flatnonzero(s.region == r)[np.argmax(score[s.region == r])]
+                     for r in np.unique(s.region)], dtype=np.int64)
+
+
+def test_brightest_peaks_equals_the_argmax_of_brightness():
+    """Median only where it can win: the same peaks (first among ties) as the arg-max
+    of the full 3 x 3 median brightness, with ties, several views and regions, hot
+    pixels, and the inputs that take the plain path (two samples on one pixel,
+    a non-finite luminance, negative regions)."""
+    import dataclasses
+
+    rng = np.random.default_rng(5)
+    for trial in range(300):
+        shapes = [tuple(rng.integers(1, 30, 2)) for _ in range(rng.integers(1, 4))]
+        s = _bare_samples(rng, shapes, rng.uniform(0.1, 1.0), int(rng.integers(1, 5)))
+        if len(s) == 0:
+            continue
+        if trial % 3 == 0:
+            s.radiance[rng.integers(len(s))] = 50.0  # hot pixel
+        if trial % 7 == 0:
+            s = dataclasses.replace(s, region=s.region - 2)
+        got = reliable.brightest_peaks(s)
+        assert got.dtype == np.int64
+        np.testing.assert_array_equal(got, _peaks_reference(s))
+    s = _bare_samples(rng, [(20, 20)], 0.8, 2)
+    twice = s.subset(np.r_[np.arange(len(s)), 0])  # sample 0's pixel twice
+    np.testing.assert_array_equal(reliable.brightest_peaks(twice), _peaks_reference(twice))
+    s.radiance[3] = np.nan
+    np.testing.assert_array_equal(reliable.brightest_peaks(s), _peaks_reference(s))
+
+
+def test_monotone_residuals_equal_a_plain_sort_and_fit():
+    """The radix-sorted, vectorised residuals equal a per-region argsort + fit, bit
+    for bit: ties in n.h (stable order), several and negative regions, NaN n.h."""
+    import dataclasses
+
+    from scipy.optimize import isotonic_regression
+
+
+    def reference(s):
+        h = s.l + s.v
+        h /= np.linalg.norm(h, axis=1, keepdims=True)
+        ndoth = np.sum(s.n * h, axis=1)
+        out = np.zeros_like(s.rho)
+        for region in np.unique(s.region):
+            sel = np.flatnonzero(s.region == region)
+            order = sel[np.argsort(ndoth[sel], kind="stable")]
+            for c in range(3):
+                rho = s.rho[order, c]
+                delta = 1e-3 * max(float(np.median(rho)), 1e-12)
+                y = np.log(np.maximum(rho, 0.0) + delta)
+                out[order, c] = np.abs(y - isotonic_regression(y, increasing=True).x)
+        return out
+
+    rng = np.random.default_rng(6)
+    for trial in range(60):
+        N = int(rng.integers(1, 400))
+        n = rng.normal(size=(N, 3))
+        if trial % 2:
+            n = np.round(n * 2) / 2  # many equal n.h
+        n[:, 2] = np.abs(n[:, 2]) + 0.1
+        l = np.tile([0.0, 0.0, 1.0], (N, 1)) if trial % 2 else rng.normal(size=(N, 3))  # noqa: E741
+        v = l.copy() if trial % 2 else rng.normal(size=(N, 3))
+        if trial % 5 == 0:
+            v[0] = -l[0]  # h = 0: n.h is NaN
+        rho = rng.random((N, 3)) ** 3
+        rho[rng.random((N, 3)) < 0.05] = 0.0
+        s = _bare_samples(rng, [(1, 1)], 1.0, 1)
+        s = dataclasses.replace(
+            s, n=n, l=l, v=v, rho=rho, radiance=rho, irradiance=rho,
+            cells=np.zeros((N, 3), dtype=np.int64), view=np.zeros(N, dtype=np.int64),
+            pixel=np.zeros((N, 2), dtype=np.int64), curvature=np.zeros(N),
+            region=rng.integers(-2, 3, N) if trial % 3 else rng.integers(0, 4, N))
+        with np.errstate(invalid="ignore"):
+            np.testing.assert_array_equal(reliable.monotone_residuals(s), reference(s))
+
+
+def test_observe_view_directions_and_subset_match_the_plain_ones(scene):
+    import dataclasses
+
+    from brdf_reconstruct.core import render
+
+    truth, scan = scene
+    light = synthetic.LIGHTS[2]
+    camera = np.array([0.3, -0.2, 4.0])  # perspective: view directions vary
+    photo = synthetic.photo(_lambert_table(), truth, light)
+    s = observations.observe(photo, scan.normal, scan.position, np.ones(scan.mask.shape),
+                             np.zeros(scan.mask.shape, dtype=int), camera, light)
+    p = scan.position[s.pixel[:, 0], s.pixel[:, 1]]
+    np.testing.assert_array_equal(s.v, render.view_directions(camera, p))
+    n = scan.normal[s.pixel[:, 0], s.pixel[:, 1]]
+    np.testing.assert_array_equal(s.n, n / np.linalg.norm(n, axis=1, keepdims=True))
+    keep = np.random.default_rng(0).random(len(s)) < 0.5
+    for index in (keep, np.flatnonzero(keep), np.flatnonzero(keep)[::-1], [], [-1, 0]):
+        sub = s.subset(index)
+        for f in dataclasses.fields(s):
+            if f.name not in ("shapes", "removed"):
+                np.testing.assert_array_equal(getattr(sub, f.name), getattr(s, f.name)[index])
