@@ -15,7 +15,7 @@ PYTHON311 := $(shell \
 # and tests alike; outside make it defaults to ~/.cache/brdf_reconstruct.
 export BRDF_RECONSTRUCT_CACHE ?= $(CURDIR)/.cache
 
-.PHONY: venv test lint demo bench clean
+.PHONY: venv test lint demo bench extension clean
 
 # Internal: (re)install only when requirements.txt or pyproject.toml change.
 venv: $(STAMP)
@@ -45,6 +45,13 @@ demo: venv
 
 bench: venv
 	$(PY) bench/run_all.py
+
+# Installable extension zips, one per platform, into dist/ (brdf_reconstruct-<version>-linux_x64.zip,
+# ..._windows_x64.zip, ..._macos_arm64.zip) with scipy and pycolmap wheels for Python 3.11 and 3.13
+# bundled; wheels are downloaded once into .cache/wheels. Options go in EXTENSION_ARGS, e.g.
+#   make extension EXTENSION_ARGS="--platforms linux-x64 --pythons 3.11"
+extension: venv
+	$(PY) scripts/build_extension.py $(EXTENSION_ARGS)
 
 # Removes the environment and caches; keeps bench/results and .cache/ (data).
 clean:

@@ -5,12 +5,14 @@ from __future__ import annotations
 import sys
 
 import core_bench
+import cycles_kl_bench
 import reliable_bench
 
 
 def main() -> int:
     core_bench.main(sys.argv[1:])
     reliable_bench.main(sys.argv[1:])
+    cycles_kl_bench.main()
     return 0
 
 

@@ -8,9 +8,9 @@ them) and registers them with ``bpy.utils.register_classes_factory``.
 import bpy
 
 from .. import operators
-from . import panel, props
+from . import panel, prefs, props
 
-CLASSES = props.CLASSES + operators.CLASSES + panel.CLASSES
+CLASSES = prefs.CLASSES + props.CLASSES + operators.CLASSES + panel.CLASSES
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
 

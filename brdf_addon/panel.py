@@ -1,19 +1,214 @@
-"""Sidebar panels in the 3D viewport (N panel, tab "BRDF")."""
+"""Sidebar panels in the 3D viewport (N panel, tab "BRDF"), in workflow order:
+Scan -> Cameras -> Photos -> Light -> Settings -> Reconstruct -> Results.
 
-from bpy.types import Panel
+Each panel's ``draw`` only reads ``scene.brdf`` and lays out widgets, so the
+tests drive every ``draw`` through a stand-in layout that records the calls
+(pip ``bpy`` has no window system), for each state: nothing set, photos added,
+running, results.
+"""
+
+import json
+
+import bpy
+from bpy.types import Panel, UIList
+
+from . import props
 
 
-class BRDF_PT_main(Panel):
-    bl_idname = "BRDF_PT_main"
-    bl_label = "BRDF Reconstruct"
+class BRDF_UL_photos(UIList):
+    """The lit photos: image name, camera, light source."""
+
+    def draw_item(self, _context, layout, _data, item, _icon, _active_data, _active_prop,
+                  _index=0, _flt_flag=0):
+        row = layout.row(align=True)
+        row.label(text=item.name or "(no image)", icon="IMAGE_DATA")
+        row.label(text=item.camera.name if item.camera else "no camera",
+                  icon="CAMERA_DATA" if item.camera else "ERROR")
+        row.label(text=item.light_source.replace("_", " ").title(), icon="LIGHT_SUN")
+
+
+class _BRDFPanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
     bl_category = "BRDF"
 
+    @classmethod
+    def poll(cls, context):
+        return getattr(context.scene, "brdf", None) is not None
+
+
+class BRDF_PT_main(_BRDFPanel, Panel):
+    """Scan: the target object and how it is split into regions."""
+
+    bl_idname = "BRDF_PT_main"
+    bl_label = "BRDF Reconstruct"
+
     def draw(self, context):
         layout = self.layout
-        layout.label(text="The reconstruction workflow comes in later versions.")
-        layout.prop(context.scene.brdf, "seed")
+        s = context.scene.brdf
+        layout.label(text="Scan", icon="MESH_DATA")
+        layout.prop(s, "target")
+        layout.prop(s, "region_mode")
+        if s.target is not None and s.target.type == "MESH":
+            n = max(len(s.target.material_slots), 1)
+            layout.label(text=f"{n} region(s)")
 
 
-CLASSES = (BRDF_PT_main,)
+class BRDF_PT_cameras(_BRDFPanel, Panel):
+    bl_idname = "BRDF_PT_cameras"
+    bl_label = "Cameras"
+    bl_parent_id = "BRDF_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        cameras = [o for o in context.scene.objects if o.type == "CAMERA"]
+        layout.operator("brdf.import_colmap", icon="IMPORT")
+        layout.label(text=f"{len(cameras)} camera(s) in the scene")
+
+
+class BRDF_PT_photos(_BRDFPanel, Panel):
+    bl_idname = "BRDF_PT_photos"
+    bl_label = "Photos"
+    bl_parent_id = "BRDF_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.brdf
+        row = layout.row()
+        row.template_list("BRDF_UL_photos", "", s, "photos", s, "active_photo", rows=3)
+        col = row.column(align=True)
+        col.operator("brdf.add_photos", icon="ADD", text="")
+        col.operator("brdf.remove_photo", icon="REMOVE", text="")
+        if 0 <= s.active_photo < len(s.photos):
+            photo = s.photos[s.active_photo]
+            layout.prop(photo, "filepath")
+            layout.prop(photo, "camera")
+            layout.prop(photo, "mask_path")
+            layout.prop(photo, "irradiance")
+        elif not len(s.photos):
+            layout.label(text="Add the photos taken under one distant light")
+
+
+class BRDF_PT_light(_BRDFPanel, Panel):
+    bl_idname = "BRDF_PT_light"
+    bl_label = "Light"
+    bl_parent_id = "BRDF_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.brdf
+        if not 0 <= s.active_photo < len(s.photos):
+            layout.label(text="Select a photo to set its light")
+            return
+        photo = s.photos[s.active_photo]
+        layout.prop(photo, "light_source")
+        if photo.light_source == "SUN_OBJECT":
+            layout.prop(photo, "sun")
+            layout.operator("brdf.light_from_sun", icon="LIGHT_SUN")
+        elif photo.light_source == "DIRECTION":
+            layout.prop(photo, "direction")
+        elif photo.light_source == "PROBE":
+            layout.prop(photo, "probe_path")
+            layout.operator("brdf.light_from_probe", icon="SHADING_RENDERED")
+        else:
+            for name in ("when", "utc_offset", "latitude", "longitude", "north_offset"):
+                layout.prop(photo, name)
+            layout.operator("brdf.light_from_time", icon="TIME")
+
+
+class BRDF_PT_settings(_BRDFPanel, Panel):
+    bl_idname = "BRDF_PT_settings"
+    bl_label = "Settings"
+    bl_parent_id = "BRDF_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.brdf
+        layout.prop(s, "preset")
+        if s.preset != "CUSTOM":
+            layout.label(text=props.PRESET_NOTE, icon="INFO")
+        col = layout.column(heading="Reliable Region")
+        col.prop(s, "use_curvature")
+        sub = col.column()
+        sub.active = s.use_curvature
+        sub.prop(s, "curvature_threshold")
+        col.prop(s, "use_monotonicity")
+        sub = col.column()
+        sub.active = s.use_monotonicity
+        sub.prop(s, "monotonicity_tolerance")
+        col.prop(s, "use_brightest")
+        sub = col.column()
+        sub.active = s.use_brightest
+        sub.prop(s, "peak_max_angle")
+        col.prop(s, "clip_level")
+        col.prop(s, "min_cosine")
+        col = layout.column(heading="Sampling")
+        for name in ("samples", "trials", "subset_fraction", "min_reliable_samples"):
+            col.prop(s, name)
+        col = layout.column(heading="Selection")
+        col.prop(s, "kl_path")
+        col.prop(s, "kl_bins")
+        if s.kl_path == "CYCLES":
+            col.prop(s, "kl_samples")
+        layout.prop(s, "seed")
+        layout.prop(s, "output_dir")
+
+
+class BRDF_PT_reconstruct(_BRDFPanel, Panel):
+    bl_idname = "BRDF_PT_reconstruct"
+    bl_label = "Reconstruct"
+    bl_parent_id = "BRDF_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.brdf
+        if s.running:
+            layout.prop(s, "progress", text=s.status or "Running", slider=True)
+            layout.label(text="Press Esc to cancel", icon="CANCEL")
+            return
+        row = layout.row()
+        row.scale_y = 1.5
+        row.operator("brdf.reconstruct", icon="PLAY")
+        if s.target is None:
+            layout.label(text="Choose the scan first", icon="INFO")
+        elif not len(s.photos):
+            layout.label(text="Add lit photos first", icon="INFO")
+
+
+class BRDF_PT_results(_BRDFPanel, Panel):
+    bl_idname = "BRDF_PT_results"
+    bl_label = "Results"
+    bl_parent_id = "BRDF_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.brdf
+        if not len(s.results):
+            layout.label(text="No results yet")
+            return
+        for i, r in enumerate(s.results):
+            box = layout.box()
+            box.label(text=r.label, icon="MATERIAL" if r.status == "ok" else "ERROR")
+            if r.status != "ok":
+                box.label(text=r.reason)
+                continue
+            box.label(text=f"Trial {r.winner}, KL {r.kl:.4f}")
+            counts = json.loads(r.counts or "{}")
+            removed = counts.get("removed", {})
+            box.label(text=f"Samples: {counts.get('observed', 0)} observed, "
+                      + ", ".join(f"-{v} {k}" for k, v in removed.items())
+                      + f", {counts.get('reliable', 0)} reliable")
+            if r.bake_error >= 0:
+                box.label(text=f"Bake error {r.bake_error:.3f}")
+            if r.material is not None:
+                box.prop(r, "material", text="")
+            row = box.row()
+            row.label(text=bpy.path.basename(r.table_path), icon="FILE")
+            row.operator("brdf.export", icon="EXPORT", text="").index = i
+            if r.plot is not None:
+                box.template_ID_preview(r, "plot", hide_buttons=True)
+
+
+CLASSES = (BRDF_UL_photos, BRDF_PT_main, BRDF_PT_cameras, BRDF_PT_photos, BRDF_PT_light,
+           BRDF_PT_settings, BRDF_PT_reconstruct, BRDF_PT_results)

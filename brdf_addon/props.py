@@ -1,26 +1,223 @@
 """Settings of the reconstruction, held by one PropertyGroup on the scene.
 
-The names match the ``[settings]`` table of the batch job file, so the panel,
-the batch entry and the tests share one vocabulary.
+``Scene.brdf`` (:class:`BRDFSettings`) holds the target object, the list of
+lit photos (:class:`BRDFPhoto`), every reliable-region, sampling, trial and KL
+setting, the seed, the run state, and the results per region
+(:class:`BRDFRegionResult`). The setting names match the ``[settings]`` table
+of the batch job file (``brdf_addon.job``), so the panel, the batch entry and
+the tests share one vocabulary. Angles are degrees here (the UI); the
+conversion to radians happens in :func:`pipeline_settings`.
 """
 
+import math
+
 import bpy
-from bpy.props import IntProperty, PointerProperty
+from bpy.props import (
+    BoolProperty,
+    CollectionProperty,
+    EnumProperty,
+    FloatProperty,
+    FloatVectorProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
 from bpy.types import PropertyGroup
+
+from .job import SETTING_NAMES
+
+# Blender 4.5+ warns on "//" paths unless the property says it takes them
+PATH = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
+
+# Presets: (n_samples, n_trials, kl_path). Provisional: the speed/accuracy
+# benchmark that must set them (issue 5, bench/results/tradeoff.json) does not
+# exist yet; these follow the paper (6 samples) and bench/results/core.json
+# (20 optimal samples: sphere error 0.062 vs 0.119 at random; 40: 0.025).
+PRESETS = {
+    "FAST": dict(samples=6, trials=4, kl_path="FAST"),
+    "BALANCED": dict(samples=20, trials=16, kl_path="FAST"),
+    "ACCURATE": dict(samples=40, trials=32, kl_path="CYCLES"),
+}
+PRESET_NOTE = ("Provisional presets: the speed/accuracy benchmark that will set them "
+               "is not done yet")
+
+LIGHT_SOURCES = [
+    ("SUN_OBJECT", "Sun Object", "Direction of a Sun light object in the scene"),
+    ("DIRECTION", "Direction", "A world-space direction towards the light"),
+    ("PROBE", "Sphere Probe", "From the highlight on a mirror or glossy black sphere photo"),
+    ("SUN_POSITION", "Date, Time, Place", "The sun's direction from when and where the "
+     "photo was taken (creates or updates a Sun object)"),
+]
+
+
+def _is_camera(_self, obj):
+    return obj.type == "CAMERA"
+
+
+def _is_sun(_self, obj):
+    return obj.type == "LIGHT" and obj.data.type == "SUN"
+
+
+def _is_mesh(_self, obj):
+    return obj.type == "MESH"
+
+
+class BRDFPhoto(PropertyGroup):
+    """One lit photo: image file, camera, light and irradiance (``scene.brdf.photos``)."""
+
+    filepath: StringProperty(name="Image", subtype="FILE_PATH", options=PATH,
+                             description="Linear EXR/TIFF, or sRGB PNG/JPEG, of the lit object")
+    camera: PointerProperty(name="Camera", type=bpy.types.Object, poll=_is_camera,
+                            description="Camera the photo was taken from")
+    light_source: EnumProperty(name="Light", items=LIGHT_SOURCES, default="SUN_OBJECT")
+    sun: PointerProperty(name="Sun", type=bpy.types.Object, poll=_is_sun,
+                         description="Sun light whose direction is the photo's light")
+    direction: FloatVectorProperty(name="Direction", size=3, subtype="DIRECTION",
+                                   default=(0.0, 0.0, 1.0),
+                                   description="World direction towards the light")
+    probe_path: StringProperty(name="Probe Photo", subtype="FILE_PATH", options=PATH,
+                               description="Photo of a mirror or glossy black sphere")
+    when: StringProperty(name="Date and Time", default="2026-06-21 12:00:00",
+                         description="Local date and time of the photo, YYYY-MM-DD HH:MM:SS")
+    utc_offset: FloatProperty(name="UTC Offset", default=0.0, min=-14.0, max=14.0,
+                              description="Hours east of Greenwich of that local time "
+                              "(daylight saving included)")
+    latitude: FloatProperty(name="Latitude", default=0.0, min=-90.0, max=90.0,
+                            description="Degrees north")
+    longitude: FloatProperty(name="Longitude", default=0.0, min=-180.0, max=180.0,
+                             description="Degrees east")
+    north_offset: FloatProperty(name="North Offset", default=0.0, min=-180.0, max=180.0,
+                                description="Angle from the scene's +Y to geographic north, "
+                                "degrees counter-clockwise seen from above")
+    irradiance: FloatVectorProperty(name="Irradiance", size=3, min=1e-9, soft_max=100.0,
+                                    default=(1.0, 1.0, 1.0), subtype="COLOR",
+                                    description="Light's irradiance, W/m^2 per channel")
+    mask_path: StringProperty(name="Mask", subtype="FILE_PATH", options=PATH,
+                              description="Optional mask image: white = use the pixel")
+
+
+class BRDFRegionResult(PropertyGroup):
+    """What a reconstruction produced for one region (``scene.brdf.results``)."""
+
+    region: IntProperty(name="Region")
+    label: StringProperty(name="Region Name")
+    status: StringProperty(name="Status")
+    reason: StringProperty(name="Reason")
+    winner: IntProperty(name="Chosen Trial", default=-1)
+    kl: FloatProperty(name="KL", description="KL divergence of the chosen trial, nats")
+    counts: StringProperty(name="Sample Counts")
+    bake_error: FloatProperty(name="Bake Error", default=-1.0,
+                              description="Relative RMSE of the baked material against the "
+                              "table, under lights not used for fitting (-1 = not measured)")
+    material: PointerProperty(name="Material", type=bpy.types.Material)
+    table_path: StringProperty(name="Table", subtype="FILE_PATH", options=PATH)
+    plot: PointerProperty(name="Plot", type=bpy.types.Image)
+
+
+def _apply_preset(self, _context):
+    if self.preset in PRESETS:
+        for key, value in PRESETS[self.preset].items():
+            setattr(self, key, value)
 
 
 class BRDFSettings(PropertyGroup):
     """Scene-wide settings, reached as ``scene.brdf``."""
 
-    seed: IntProperty(
-        name="Seed",
-        description="Seed of every random choice (sampling trials); same seed, same result",
-        default=0,
-        min=0,
-    )
+    target: PointerProperty(name="Scan", type=bpy.types.Object, poll=_is_mesh,
+                            description="The photogrammetry mesh to give a BRDF")
+    region_mode: EnumProperty(
+        name="Regions", default="MATERIAL_SLOT",
+        items=[("MATERIAL_SLOT", "Material Slots", "One BRDF per material slot (an object "
+                "without slots is one region)")])
+    photos: CollectionProperty(type=BRDFPhoto)
+    active_photo: IntProperty(name="Active Photo", default=0, min=0)
+
+    # reliable region (paper Sec. 3.1)
+    use_curvature: BoolProperty(name="Curvature", default=True,
+                                description="Drop pixels of high image-space curvature")
+    curvature_threshold: FloatProperty(name="Curvature Threshold", default=0.2, min=0.0,
+                                       description="Largest |H| kept, radians of normal turn "
+                                       "per 10 pixels (the paper's 0.2)")
+    use_monotonicity: BoolProperty(name="Monotonicity", default=True,
+                                   description="Drop pixels breaking monotonicity in n.h (Eq. 1)")
+    monotonicity_tolerance: FloatProperty(name="Monotonicity Tolerance", default=1.0,
+                                          min=0.0, description="Allowed factor (1 + tolerance) "
+                                          "off the monotone fit")
+    use_brightest: BoolProperty(name="Brightest Peak", default=True,
+                                description="Take the brightest pixel as the specular peak "
+                                "(Eq. 2)")
+    peak_max_angle: FloatProperty(name="Peak Max Angle", default=30.0, min=0.0, max=180.0,
+                                  description="Eq. 2 only if the brightest pixel's normal is "
+                                  "within this many degrees of h")
+    clip_level: FloatProperty(name="Saturation Level", default=0.0, min=0.0,
+                              description="Pixels with a channel at or above this are "
+                              "saturated and dropped (0 = no clipping)")
+    min_cosine: FloatProperty(name="Min Cosine", default=0.1, min=0.0, max=1.0,
+                              description="Smallest n.l and n.v kept (grazing limit)")
+
+    # sampling and trials (paper Sec. 3.2)
+    preset: EnumProperty(
+        name="Preset", default="BALANCED", update=_apply_preset,
+        items=[("FAST", "Fast", PRESET_NOTE), ("BALANCED", "Balanced", PRESET_NOTE),
+               ("ACCURATE", "Accurate", PRESET_NOTE), ("CUSTOM", "Custom", "Own values")])
+    samples: IntProperty(name="Samples", default=20, min=1, soft_max=200,
+                         description="Condition-optimal directions per trial (paper: 6)")
+    trials: IntProperty(name="Trials", default=16, min=1, soft_max=128,
+                        description="Random-subset reconstructions; KL picks one")
+    subset_fraction: FloatProperty(name="Subset Fraction", default=0.5, min=0.01, max=1.0,
+                                   description="Share of reliable pixels each trial draws")
+    min_reliable_samples: IntProperty(name="Min Reliable Samples", default=20, min=1,
+                                      description="Regions with fewer are skipped")
+
+    # KL selection
+    kl_path: EnumProperty(
+        name="Selection", default="FAST",
+        items=[("FAST", "Fast (numpy)", "Shade each candidate table on the G-buffers"),
+               ("CYCLES", "Accurate (Cycles)", "Render each candidate's baked material")])
+    kl_bins: IntProperty(name="KL Bins", default=64, min=4, max=4096)
+    kl_samples: IntProperty(name="Cycles Samples", default=16, min=1, max=4096,
+                            description="Cycles samples per KL render")
+    seed: IntProperty(name="Seed", default=0, min=0,
+                      description="Seed of every random choice (sampling trials); "
+                      "same seed, same result")
+    output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//brdf_out",
+                               options=PATH,
+                               description="Folder for the .binary tables, report and plots")
+
+    # run state (not saved as settings)
+    running: BoolProperty(name="Running", default=False, options={"SKIP_SAVE"})
+    progress: FloatProperty(name="Progress", default=0.0, min=0.0, max=1.0,
+                            subtype="FACTOR", options={"SKIP_SAVE"})
+    status: StringProperty(name="Status", default="")
+    results: CollectionProperty(type=BRDFRegionResult)
 
 
-CLASSES = (BRDFSettings,)
+CLASSES = (BRDFPhoto, BRDFRegionResult, BRDFSettings)
+
+def pipeline_settings(settings):
+    """``core.pipeline.PipelineSettings`` from ``scene.brdf`` (degrees -> radians)."""
+    from ..core import observations, pipeline, reliable
+
+    return pipeline.PipelineSettings(
+        reliable=reliable.ReliableSettings(
+            use_curvature=settings.use_curvature,
+            curvature_threshold=settings.curvature_threshold,
+            use_monotonicity=settings.use_monotonicity,
+            monotonicity_tolerance=settings.monotonicity_tolerance,
+            use_brightest=settings.use_brightest,
+            peak_max_angle=math.radians(settings.peak_max_angle)),
+        observation=observations.ObservationSettings(
+            min_cosine=settings.min_cosine,
+            clip_level=settings.clip_level if settings.clip_level > 0 else None),
+        n_samples=settings.samples, n_trials=settings.trials,
+        subset_fraction=settings.subset_fraction,
+        min_reliable_samples=settings.min_reliable_samples, kl_bins=settings.kl_bins,
+        seed=settings.seed)
+
+
+def settings_dict(settings) -> dict:
+    """The job-file ``[settings]`` of ``scene.brdf`` (for reports and provenance)."""
+    return {name: getattr(settings, name) for name in SETTING_NAMES}
 
 
 def attach() -> None:

@@ -229,7 +229,7 @@ def select_by_kl(
     # One set of bins per view, from the photo, shared by every candidate: the KLs of
     # different candidates are then comparable (render values outside the photo's
     # range fall into the end bins).
-    bins = [_photo_range(p) for p in photo_pixels]
+    bins = [photo_range(p) for p in photo_pixels]
     kl = np.zeros((len(tables), len(views)))
     renders = [] if keep_renders else None
     for t, table in enumerate(tables):
@@ -267,7 +267,7 @@ def select_by_kl(
 
 
 # ----------------------------------------------------------------------------- helpers
-def _photo_range(pixels: np.ndarray):
+def photo_range(pixels: np.ndarray):
     """(lo, hi) of the positive photo values (all channels), or None if none is."""
     positive = pixels[pixels > 0.0]
     if positive.size == 0:

@@ -8,6 +8,8 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 # git-ignored; the default basis is built once, then reused (make sets the same place)
 CACHE = pathlib.Path(os.environ.get("BRDF_RECONSTRUCT_CACHE", ROOT / ".cache"))
+# the add-on (prefs.cache_dir) finds the same basis cache as the core tests
+os.environ.setdefault("BRDF_RECONSTRUCT_CACHE", str(CACHE))
 
 
 @pytest.fixture(scope="session")

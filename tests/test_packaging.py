@@ -11,8 +11,10 @@ def test_core_imports_without_bpy(tmp_path):
         """
         import sys
         import brdf_reconstruct
-        import brdf_reconstruct.core
-        import brdf_reconstruct.operators
+        import pkgutil, importlib
+        import brdf_reconstruct.core as core
+        for m in pkgutil.iter_modules(core.__path__):
+            importlib.import_module("brdf_reconstruct.core." + m.name)
         assert callable(brdf_reconstruct.register)
         assert "bpy" not in sys.modules, "importing the package pulled in bpy"
         assert "brdf_reconstruct.brdf_addon" not in sys.modules

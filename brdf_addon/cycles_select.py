@@ -1,0 +1,143 @@
+"""The accurate selection path: KL of Cycles renders against the photos.
+
+The fast path (``core.selection``) shades each candidate *table* on the
+G-buffers in numpy. This path renders what the user will actually get: each
+candidate is baked to a material (``core.lobe_fit`` + ``brdf_addon.material``),
+the scan is rendered by Cycles from each photo's camera under that photo's
+light, and the KL divergence of the region's pixel intensities against the
+photo's (``core.kl``, same bins and floor as the fast path) scores it.
+
+Everything is built in a temporary scene: a copy of the scan object whose
+material slots are object-linked to the candidate material (the user's mesh
+and materials are untouched), the photo's camera, and a temporary Sun with
+the photo's irradiance. Everything temporary is removed afterwards.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import bpy
+import numpy as np
+from mathutils import Vector
+
+from ..core import kl as kl_module
+from ..core import lobe_fit, photo_io, pipeline, selection
+
+_NAME = "BRDF_KL"
+
+
+def render_candidate(obj, material, camera, light, irradiance, resolution, samples: int,
+                     bounces: int = 0, device: str = "CPU") -> np.ndarray:
+    """(H, W, 3) linear radiance: Cycles render of ``obj`` with ``material`` on every
+    slot, seen by ``camera``, under a distant light (world direction ``light``,
+    irradiance scalar or RGB W/m^2). Temporary data only."""
+    width, height = resolution
+    irradiance = np.broadcast_to(np.asarray(irradiance, dtype=np.float64), (3,))
+    scene = bpy.data.scenes.new(_NAME)
+    made = {"objects": [], "lights": [], "meshes": []}
+    tmp = tempfile.mkdtemp(prefix="brdf_kl_")
+    try:
+        copy = obj.copy()
+        made["objects"].append(copy)
+        if not copy.material_slots:  # a slot needs the mesh: give the copy its own
+            copy.data = obj.data.copy()
+            made["meshes"].append(copy.data)
+            copy.data.materials.append(material)
+        for slot in copy.material_slots:  # object-linked: the user's mesh keeps its own
+            slot.link = "OBJECT"
+            slot.material = material
+        scene.collection.objects.link(copy)
+        scene.collection.objects.link(camera)
+        scene.camera = camera
+        sun_data = bpy.data.lights.new(_NAME, "SUN")
+        made["lights"].append(sun_data)
+        peak = float(irradiance.max())
+        sun_data.energy = peak
+        sun_data.color = tuple(irradiance / peak)
+        sun_data.angle = 0.0
+        sun = bpy.data.objects.new(_NAME, sun_data)
+        made["objects"].append(sun)
+        scene.collection.objects.link(sun)
+        sun.rotation_mode = "QUATERNION"
+        sun.rotation_quaternion = Vector((0, 0, 1)).rotation_difference(Vector(tuple(light)))
+        r = scene.render
+        r.engine = "CYCLES"
+        r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
+        ctx = bpy.context.scene.render
+        r.pixel_aspect_x, r.pixel_aspect_y = ctx.pixel_aspect_x, ctx.pixel_aspect_y
+        r.film_transparent = True
+        scene.cycles.samples = samples
+        scene.cycles.use_denoising = False
+        scene.cycles.use_adaptive_sampling = False
+        scene.cycles.max_bounces = bounces
+        scene.cycles.device = device
+        scene.view_settings.view_transform = "Standard"
+        r.image_settings.file_format = "OPEN_EXR"
+        r.image_settings.color_depth = "32"
+        path = os.path.join(tmp, "kl.exr")
+        r.filepath = path
+        with bpy.context.temp_override(scene=scene):
+            bpy.ops.render.render(write_still=True, scene=scene.name)
+        return photo_io.read_photo(path)
+    finally:
+        for o in made["objects"]:
+            bpy.data.objects.remove(o)
+        for light_data in made["lights"]:
+            bpy.data.lights.remove(light_data)
+        for mesh in made["meshes"]:
+            bpy.data.meshes.remove(mesh)
+        bpy.data.scenes.remove(scene)
+        for f in os.listdir(tmp):
+            os.remove(os.path.join(tmp, f))
+        os.rmdir(tmp)
+
+
+def score_candidate(scene, inputs, region: int, table, samples: int = 16,
+                    n_bins: int = 64, bounces: int = 0, device: str = "CPU") -> np.ndarray:
+    """(V,) KL per photo that sees ``region``, of Cycles renders of ``table`` baked to a
+    (temporary) material, against the photo, over the region's pixels. ``inputs``:
+    the run's ``pipeline.PhotoInput`` list, in the order of ``scene.brdf.photos``."""
+    from . import material as material_module
+
+    photos = list(scene.brdf.photos)
+    seen = [i for i, p in enumerate(inputs) if np.any(np.asarray(p.region) == region)]
+    views = pipeline.region_views(inputs, region)
+    if not views:
+        raise ValueError(f"region {region}: no photo sees it")
+    mat = material_module.build_material(f"{_NAME} candidate", lobe_fit.fit(table), {})
+    try:
+        kl = np.zeros(len(views))
+        for j, (i, v) in enumerate(zip(seen, views, strict=True)):
+            h, w = v.mask.shape
+            image = render_candidate(scene.brdf.target, mat, photos[i].camera, v.light,
+                                     v.irradiance, (w, h), samples, bounces, device)
+            ok = v.mask & np.all(np.isfinite(v.photo), axis=-1)
+            # the fast path's bins: log-spaced over the photo's positive range
+            kl[j] = kl_module.kl_divergence(v.photo[ok], image[ok], n_bins=n_bins,
+                                            range=selection.photo_range(v.photo[ok]))
+        return kl
+    finally:
+        remove_materials([mat])
+
+
+def select_by_cycles(scene, inputs, region: int, tables, samples: int = 16,
+                     n_bins: int = 64, bounces: int = 0, device: str = "CPU"):
+    """Score every candidate table of one region by Cycles renders; returns
+    ``(kl (T,) mean over photos, winner)``."""
+    score = np.array([score_candidate(scene, inputs, region, t, samples, n_bins, bounces,
+                                      device).mean() for t in tables])
+    return score, int(np.argmin(score))
+
+
+def remove_materials(materials) -> None:
+    """Delete candidate materials (and their node groups) made by :func:`select_by_cycles`."""
+    for mat in materials:
+        groups = [n.node_tree for n in mat.node_tree.nodes
+                  if n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None]
+        bpy.data.materials.remove(mat)
+        for g in groups:
+            if g.users == 0:
+                bpy.data.node_groups.remove(g)
+

@@ -1,0 +1,203 @@
+"""The batch job file (TOML): the text form of what the panel holds.
+
+See ARCHITECTURE.md / docs/architecture.md for the format. Paths are relative
+to the job file. :func:`load` parses and checks it (no bpy calls);
+:func:`apply` builds the scene through the same operators the panel uses.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import pathlib
+import tomllib
+
+KNOWN_TOP = {"blend", "mesh", "object", "colmap", "out", "settings", "photo"}
+KNOWN_PHOTO = {"image", "camera", "light", "irradiance", "mask", "sun", "probe"}
+# the panel settings (``scene.brdf``) a job's [settings] table may hold, same names
+SETTING_NAMES = (
+    "use_curvature", "curvature_threshold", "use_monotonicity", "monotonicity_tolerance",
+    "use_brightest", "peak_max_angle", "clip_level", "min_cosine", "samples", "trials",
+    "subset_fraction", "min_reliable_samples", "kl_path", "kl_bins", "kl_samples", "seed",
+    "preset", "region_mode",
+)
+
+
+class JobError(ValueError):
+    """A job-file mistake, with one sentence for the user."""
+
+
+@dataclasses.dataclass
+class Job:
+    """A parsed job; every path is absolute."""
+
+    path: pathlib.Path
+    out: pathlib.Path
+    blend: pathlib.Path | None = None
+    mesh: pathlib.Path | None = None
+    object: str | None = None
+    colmap: pathlib.Path | None = None
+    settings: dict = dataclasses.field(default_factory=dict)
+    photos: list = dataclasses.field(default_factory=list)
+
+
+def _file(base: pathlib.Path, value, what: str, must_exist: bool = True) -> pathlib.Path:
+    if not isinstance(value, str) or not value:
+        raise JobError(f"{what} must be a path string")
+    path = (base / value).resolve()
+    if must_exist and not path.exists():
+        raise JobError(f"{what} not found: {path}")
+    return path
+
+
+def load(path) -> Job:
+    """Parse and check a job file; JobError (one sentence) on any mistake."""
+    path = pathlib.Path(path).resolve()
+    if not path.is_file():
+        raise JobError(f"job file not found: {path}")
+    try:
+        data = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        raise JobError(f"job file {path.name} is not valid TOML: {error}") from None
+    unknown = set(data) - KNOWN_TOP
+    if unknown:
+        raise JobError(f"job file has unknown keys: {', '.join(sorted(unknown))}")
+    base = path.parent
+    job = Job(path=path, out=_file(base, data.get("out", "out"), "out", must_exist=False))
+    if "blend" in data:
+        job.blend = _file(base, data["blend"], "blend")
+    if "mesh" in data and "object" in data:
+        raise JobError("give either mesh or object, not both")
+    if "mesh" in data:
+        job.mesh = _file(base, data["mesh"], "mesh")
+        if job.mesh.suffix.lower() not in (".ply", ".obj", ".stl"):
+            raise JobError(f"mesh must be .ply, .obj or .stl, got {job.mesh.name}")
+    elif "object" in data:
+        job.object = str(data["object"])
+    else:
+        raise JobError("the job needs a mesh file or an object name")
+    if "colmap" in data:
+        job.colmap = _file(base, data["colmap"], "colmap")
+    job.settings = dict(data.get("settings", {}))
+    unknown = set(job.settings) - set(SETTING_NAMES)
+    if unknown:
+        raise JobError(f"unknown settings: {', '.join(sorted(unknown))}")
+    photos = data.get("photo", [])
+    if not photos:
+        raise JobError("the job has no [[photo]] entries")
+    for i, entry in enumerate(photos):
+        unknown = set(entry) - KNOWN_PHOTO
+        if unknown:
+            raise JobError(f"photo {i + 1} has unknown keys: {', '.join(sorted(unknown))}")
+        if "image" not in entry or "camera" not in entry:
+            raise JobError(f"photo {i + 1} needs image and camera")
+        photo = dict(entry)
+        for kind in ("sun", "probe"):  # a [photo.sun] or [photo.probe] table is the light
+            if kind in photo:
+                if "light" in photo:
+                    raise JobError(f"photo {i + 1} has both light and [photo.{kind}]")
+                photo["light"] = {kind: photo.pop(kind)}
+        photo["image"] = _file(base, entry["image"], f"photo {i + 1} image")
+        if "mask" in entry:
+            photo["mask"] = _file(base, entry["mask"], f"photo {i + 1} mask")
+        light = photo.get("light")
+        if isinstance(light, dict) and "probe" in light:
+            light = dict(light)
+            light["probe"] = dict(light["probe"])
+            light["probe"]["image"] = _file(base, light["probe"].get("image", ""),
+                                            f"photo {i + 1} probe image")
+            photo["light"] = light
+        job.photos.append(photo)
+    return job
+
+
+def apply(job: Job, scene) -> None:
+    """Fill ``scene`` from the job: mesh, cameras, settings, photos and lights."""
+    import bpy
+
+    from ..operators import import_colmap
+
+    if job.mesh is not None:
+        before = set(bpy.data.objects)
+        importer = {".ply": bpy.ops.wm.ply_import, ".obj": bpy.ops.wm.obj_import,
+                    ".stl": bpy.ops.wm.stl_import}[job.mesh.suffix.lower()]
+        importer(filepath=str(job.mesh))
+        new = [o for o in bpy.data.objects if o not in before and o.type == "MESH"]
+        if len(new) != 1:
+            raise JobError(f"mesh {job.mesh.name} holds {len(new)} mesh objects, not one")
+        target = new[0]
+    else:
+        target = scene.objects.get(job.object)
+        if target is None or target.type != "MESH":
+            raise JobError(f"no mesh object named {job.object} in the scene")
+    settings = scene.brdf
+    settings.target = target
+    if job.colmap is not None:
+        import_colmap.import_cameras(scene, str(job.colmap))
+    for key, value in job.settings.items():
+        if key == "preset":
+            continue
+        try:
+            setattr(settings, key, value)
+        except (TypeError, ValueError) as error:
+            raise JobError(f"setting {key} = {value!r}: {error}") from None
+    if "preset" in job.settings:
+        settings.preset = job.settings["preset"]
+    settings.output_dir = str(job.out)
+    for i, entry in enumerate(job.photos):
+        try:
+            camera = _camera(scene, entry["camera"])
+        except ValueError as error:
+            raise JobError(f"photo {i + 1}: {error}") from None
+        photo = settings.photos.add()
+        photo.name = entry["image"].name
+        photo.filepath = str(entry["image"])
+        photo.camera = camera
+        if "mask" in entry:
+            photo.mask_path = str(entry["mask"])
+        if "irradiance" in entry:
+            e = entry["irradiance"]
+            photo.irradiance = (e, e, e) if isinstance(e, int | float) else tuple(e)
+        _set_light(scene, photo, entry.get("light"), i)
+
+
+def _camera(scene, name: str):
+    """A camera by object name, else by COLMAP image name (exact, then stem)."""
+    obj = scene.objects.get(name)
+    if obj is not None and obj.type == "CAMERA":
+        return obj
+    from ..operators.photos import match_camera
+
+    try:
+        return match_camera(scene, name)
+    except ValueError:
+        raise ValueError(f"unknown camera name {name}") from None
+
+
+def _set_light(scene, photo, light, i: int) -> None:
+    if light is None:
+        suns = [o for o in scene.objects if o.type == "LIGHT" and o.data.type == "SUN"]
+        if len(suns) != 1:
+            raise JobError(f"photo {i + 1} has no light (and the scene has {len(suns)} Suns)")
+        photo.light_source, photo.sun = "SUN_OBJECT", suns[0]
+    elif isinstance(light, str):
+        obj = scene.objects.get(light)
+        if obj is None or obj.type != "LIGHT" or obj.data.type != "SUN":
+            raise JobError(f"photo {i + 1}: no Sun object named {light}")
+        photo.light_source, photo.sun = "SUN_OBJECT", obj
+    elif isinstance(light, list):
+        if len(light) != 3:
+            raise JobError(f"photo {i + 1}: light must be [x, y, z]")
+        photo.light_source, photo.direction = "DIRECTION", tuple(float(x) for x in light)
+    elif isinstance(light, dict) and "sun" in light:
+        sun = light["sun"]
+        photo.light_source = "SUN_POSITION"
+        photo.when = str(sun["date"])
+        photo.utc_offset = float(sun.get("utc_offset", 0.0))
+        photo.latitude, photo.longitude = float(sun["latitude"]), float(sun["longitude"])
+        photo.north_offset = float(sun.get("north_offset", 0.0))
+    elif isinstance(light, dict) and "probe" in light:
+        photo.light_source = "PROBE"
+        photo.probe_path = str(light["probe"]["image"])
+    else:
+        raise JobError(f"photo {i + 1}: light must be [x, y, z], a Sun name, "
+                       "a sun table or a probe table")

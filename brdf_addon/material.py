@@ -1,0 +1,392 @@
+"""The baked material: a "BRDF Reconstruction" node group from a lobe fit, and its
+error measured in Cycles.
+
+:func:`build_material` turns a :class:`core.lobe_fit.LobeFit` into a NEW material
+whose tree is one group node (label "BRDF Reconstruction") feeding the Material
+Output. The group holds exactly the closures :mod:`core.lobe_fit` models, added
+together: a Diffuse BSDF (Lambert), per lobe a Glossy BSDF (GGX or Beckmann) plus
+a Metallic BSDF (same distribution, F82, black base, white edge tint: the Schlick
+grazing rise) behind a Mix Shader, and a Sheen BSDF (Ashikhmin). The fitted
+values are the group node's inputs, so a user can see and tweak them.
+
+:func:`bake_error` renders a unit sphere with the material in Cycles, in a
+temporary scene (orthographic camera down -z, one Sun of known irradiance per
+light, black world, direct light only) and compares each image with numpy
+shading of the table (:func:`core.render.shade`) on the analytic sphere normals.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+import time
+
+import bpy
+import numpy as np
+from mathutils import Vector
+
+from ..core import lobe_fit, metrics, render
+
+GROUP_NAME = "BRDF Reconstruction"
+_DISTRIBUTION = {"ggx": "GGX", "beckmann": "BECKMANN"}  # lobe_fit -> node enum
+
+
+# ------------------------------------------------------------------------- the material
+def _params(fit) -> lobe_fit.LobeParams:
+    if isinstance(fit, lobe_fit.LobeFit):
+        return fit.params
+    if isinstance(fit, dict):
+        return lobe_fit.LobeParams.from_dict(fit)
+    return fit
+
+
+def _rgba(rgb) -> tuple:
+    return (*(float(x) for x in rgb), 1.0)
+
+
+def _add_input(ng, name, socket_type, value, **limits):
+    sock = ng.interface.new_socket(name, in_out="INPUT", socket_type=socket_type)
+    for key, limit in limits.items():
+        setattr(sock, key, limit)
+    sock.default_value = value
+    return sock
+
+
+def build_node_group(params, name: str = GROUP_NAME) -> bpy.types.ShaderNodeTree:
+    """A new shader node group (data-block ``name``, Blender adds a suffix on a clash)
+    rendering :class:`core.lobe_fit.LobeParams` ``params``. Inputs: "Diffuse Color",
+    per lobe "Lobe i Color" / "Lobe i Roughness" / "Lobe i Grazing", "Sheen Color",
+    "Sheen Roughness"; output "Shader"."""
+    p = _params(params)
+    ng = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    ng.interface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
+    _add_input(ng, "Diffuse Color", "NodeSocketColor", _rgba(p.diffuse))
+    for i, (color, grazing, rough) in enumerate(
+        zip(p.colors, p.grazing, p.roughness, strict=True), start=1
+    ):
+        _add_input(ng, f"Lobe {i} Color", "NodeSocketColor", _rgba(color))
+        _add_input(ng, f"Lobe {i} Roughness", "NodeSocketFloat", float(rough),
+                   min_value=0.0, max_value=1.0)
+        _add_input(ng, f"Lobe {i} Grazing", "NodeSocketFloat", float(grazing),
+                   min_value=0.0, max_value=1.0, subtype="FACTOR")
+    has_sheen = bool(np.any(p.sheen != 0.0))
+    if has_sheen:
+        _add_input(ng, "Sheen Color", "NodeSocketColor", _rgba(p.sheen))
+        _add_input(ng, "Sheen Roughness", "NodeSocketFloat", float(p.sheen_sigma),
+                   min_value=0.0, max_value=1.0)
+
+    nodes, links = ng.nodes, ng.links
+    group_in = nodes.new("NodeGroupInput")
+    group_in.location = (-900, 0)
+    group_out = nodes.new("NodeGroupOutput")
+    group_out.location = (700, 0)
+
+    diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.location = (-400, 400)
+    diffuse.inputs["Roughness"].default_value = 0.0  # Lambert, not Oren-Nayar
+    links.new(group_in.outputs["Diffuse Color"], diffuse.inputs["Color"])
+    shaders = [diffuse.outputs["BSDF"]]
+
+    for i, dist in enumerate(p.distributions, start=1):
+        y = 400 - 350 * i
+        glossy = nodes.new("ShaderNodeBsdfAnisotropic")  # the Glossy BSDF
+        glossy.name = glossy.label = f"Lobe {i} Glossy"
+        # GGX, not Multiscatter GGX: single scattering, no energy compensation
+        glossy.distribution = _DISTRIBUTION[dist]
+        glossy.location = (-400, y)
+        glossy.inputs["Anisotropy"].default_value = 0.0
+        links.new(group_in.outputs[f"Lobe {i} Color"], glossy.inputs["Color"])
+        links.new(group_in.outputs[f"Lobe {i} Roughness"], glossy.inputs["Roughness"])
+        metallic = nodes.new("ShaderNodeBsdfMetallic")
+        metallic.name = metallic.label = f"Lobe {i} Grazing"
+        metallic.distribution = _DISTRIBUTION[dist]
+        metallic.fresnel_type = "F82"
+        metallic.location = (-400, y - 170)
+        metallic.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        metallic.inputs["Edge Tint"].default_value = (1.0, 1.0, 1.0, 1.0)  # pure Schlick
+        metallic.inputs["Anisotropy"].default_value = 0.0
+        links.new(group_in.outputs[f"Lobe {i} Roughness"], metallic.inputs["Roughness"])
+        mix = nodes.new("ShaderNodeMixShader")  # first input empty: scales by Fac
+        mix.location = (-150, y - 170)
+        links.new(group_in.outputs[f"Lobe {i} Grazing"], mix.inputs["Fac"])
+        links.new(metallic.outputs["BSDF"], mix.inputs[2])
+        shaders += [glossy.outputs["BSDF"], mix.outputs["Shader"]]
+
+    if has_sheen:
+        sheen = nodes.new("ShaderNodeBsdfSheen")
+        sheen.distribution = "ASHIKHMIN"
+        sheen.location = (-400, -400 - 350 * len(p.alphas))
+        links.new(group_in.outputs["Sheen Color"], sheen.inputs["Color"])
+        links.new(group_in.outputs["Sheen Roughness"], sheen.inputs["Roughness"])
+        shaders.append(sheen.outputs["BSDF"])
+
+    total = shaders[0]
+    for j, shader in enumerate(shaders[1:]):
+        add = nodes.new("ShaderNodeAddShader")
+        add.location = (150 + 120 * j, 200 - 60 * j)
+        links.new(total, add.inputs[0])
+        links.new(shader, add.inputs[1])
+        total = add.outputs["Shader"]
+    links.new(total, group_out.inputs["Shader"])
+    return ng
+
+
+def build_material(name: str, fit, provenance: dict) -> bpy.types.Material:
+    """A NEW material ``name`` (Blender suffixes it if taken; no existing material is
+    touched) holding one "BRDF Reconstruction" group node -> Material Output.
+
+    fit: a :class:`core.lobe_fit.LobeFit` (or its params, or their dict).
+    provenance: JSON-able facts about where the BRDF came from; each key is stored
+    as the custom property ``"brdf_" + key`` (strings as they are, anything else as
+    a JSON string), e.g. ``{"table_path": ..., "settings": {...}}`` gives
+    ``mat["brdf_table_path"]`` and ``mat["brdf_settings"]``. Also stored:
+    ``mat["brdf_fit"]`` (parameters JSON), ``mat["brdf_errors"]`` and
+    ``mat["brdf_fit_info"]`` (JSON, when ``fit`` is a LobeFit).
+    """
+    params = _params(fit)
+    mat = bpy.data.materials.new(name)
+    if mat.node_tree is None:  # before Blender 5.0 a material starts without nodes
+        mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.clear()
+    ng = build_node_group(params, GROUP_NAME)
+    group = tree.nodes.new("ShaderNodeGroup")
+    group.node_tree = ng
+    group.label = GROUP_NAME
+    group.name = GROUP_NAME
+    group.location = (0, 0)
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (300, 0)
+    tree.links.new(group.outputs["Shader"], out.inputs["Surface"])
+
+    for key, value in provenance.items():
+        mat[f"brdf_{key}"] = (value if isinstance(value, str)
+                              else json.dumps(value, sort_keys=True, default=str))
+    mat["brdf_fit"] = json.dumps(params.to_dict(), sort_keys=True)
+    if isinstance(fit, lobe_fit.LobeFit):
+        mat["brdf_errors"] = json.dumps(fit.errors, sort_keys=True)
+        mat["brdf_fit_info"] = json.dumps(fit.info, sort_keys=True)
+    return mat
+
+
+# ------------------------------------------------------------------------- bake error
+class _TemporaryScene:
+    """A scene with a unit sphere wearing ``material``, an orthographic camera
+    looking down -z that frames [-1, 1]^2, a Sun, and a black world; Cycles on the
+    CPU, direct light only, linear float EXR output. Everything it creates is
+    removed on exit, also after an error; the user's scenes and the context scene
+    are not touched. (An existing "Render Result" image keeps showing the last
+    check render, as after any render.)"""
+
+    def __init__(self, material, resolution: int, samples: int):
+        self.material = material
+        self.resolution = resolution
+        self.samples = samples
+        self.created = []  # (collection, datablock), removed in reverse order
+
+    def _new(self, collection, *args):
+        block = collection.new(*args)
+        self.created.append((collection, block))
+        return block
+
+    def __enter__(self):
+        self.images_before = set(bpy.data.images)
+        self.tmp = tempfile.TemporaryDirectory(prefix="brdf_bake_")
+        try:
+            self._build()
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def _build(self):
+        scene = self.scene = self._new(bpy.data.scenes, "BRDF bake check")
+        scene.render.engine = "CYCLES"
+        cyc = scene.cycles
+        cyc.device = "CPU"
+        cyc.samples = self.samples
+        cyc.use_adaptive_sampling = False
+        cyc.use_denoising = False
+        cyc.max_bounces = 0  # direct light only
+        cyc.seed = 0
+        # Point-sample each pixel centre, like the numpy sphere. A Box filter would
+        # not do: Cycles spreads its samples over the whole pixel whatever the width.
+        cyc.pixel_filter_type = "BLACKMAN_HARRIS"
+        cyc.filter_width = 0.01
+        cyc.sample_clamp_direct = 0.0
+        cyc.sample_clamp_indirect = 0.0
+        r = scene.render
+        r.resolution_x = r.resolution_y = self.resolution
+        r.resolution_percentage = 100
+        r.pixel_aspect_x = r.pixel_aspect_y = 1.0
+        r.film_transparent = False
+        r.use_compositing = False
+        r.use_sequencer = False
+        r.image_settings.file_format = "OPEN_EXR"
+        r.image_settings.color_depth = "32"
+        r.image_settings.color_mode = "RGB"
+        r.image_settings.exr_codec = "ZIP"
+        scene.view_settings.view_transform = "Standard"  # not AgX/Filmic
+        scene.view_settings.look = "None"
+        scene.view_settings.exposure = 0.0
+        scene.view_settings.gamma = 1.0
+
+        world = self._new(bpy.data.worlds, "BRDF bake check")
+        if world.node_tree is None:  # before Blender 5.0
+            world.use_nodes = True
+        bg = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
+        bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        bg.inputs["Strength"].default_value = 0.0
+        scene.world = world
+
+        # The sphere is one point of radius 1: Cycles intersects points as true
+        # spheres with exact normals (a UV sphere's interpolated normals are off by
+        # ~1e-4 rad, enough to move a roughness-0.1 highlight's peak by 2 %).
+        nodes_tree = self._new(bpy.data.node_groups, "BRDF bake check sphere",
+                               "GeometryNodeTree")
+        nodes_tree.interface.new_socket("Geometry", in_out="OUTPUT",
+                                        socket_type="NodeSocketGeometry")
+        points = nodes_tree.nodes.new("GeometryNodePoints")
+        points.inputs["Count"].default_value = 1
+        points.inputs["Position"].default_value = (0.0, 0.0, 0.0)
+        points.inputs["Radius"].default_value = 1.0
+        set_material = nodes_tree.nodes.new("GeometryNodeSetMaterial")
+        set_material.inputs["Material"].default_value = self.material
+        output = nodes_tree.nodes.new("NodeGroupOutput")
+        nodes_tree.links.new(points.outputs["Points"], set_material.inputs["Geometry"])
+        nodes_tree.links.new(set_material.outputs["Geometry"], output.inputs["Geometry"])
+        mesh = self._new(bpy.data.meshes, "BRDF bake check sphere")
+        sphere = self._new(bpy.data.objects, "BRDF bake check sphere", mesh)
+        modifier = sphere.modifiers.new("sphere", "NODES")
+        modifier.node_group = nodes_tree
+        scene.collection.objects.link(sphere)
+
+        cam_data = self._new(bpy.data.cameras, "BRDF bake check camera")
+        cam_data.type = "ORTHO"
+        cam_data.ortho_scale = 2.0
+        cam_data.clip_start = 0.1
+        cam_data.clip_end = 100.0
+        camera = self._new(bpy.data.objects, "BRDF bake check camera", cam_data)
+        camera.location = (0.0, 0.0, 10.0)  # identity rotation: looks down -z, +y up
+        scene.collection.objects.link(camera)
+        scene.camera = camera
+
+        sun_data = self._new(bpy.data.lights, "BRDF bake check sun", "SUN")
+        sun_data.angle = 0.0  # a delta light: no penumbra, no blur of sharp lobes
+        self.sun = self._new(bpy.data.objects, "BRDF bake check sun", sun_data)
+        scene.collection.objects.link(self.sun)
+
+    def render(self, light, irradiance: float) -> np.ndarray:
+        """Linear radiance image (H, W, 3), row 0 at +y, under a Sun from ``light``
+        (unit (3,), towards the light) of ``irradiance`` W/m^2."""
+        # A Sun shines along its local -Z: point local +Z at the light.
+        self.sun.rotation_mode = "QUATERNION"
+        self.sun.rotation_quaternion = Vector(light).normalized().to_track_quat("Z", "Y")
+        self.sun.data.energy = irradiance  # Sun strength is irradiance in W/m^2
+        path = os.path.join(self.tmp.name, "render.exr")
+        self.scene.render.filepath = path
+        bpy.ops.render.render(write_still=True, scene=self.scene.name)
+        return _read_exr(path)
+
+    def __exit__(self, *exc):
+        for collection, block in reversed(self.created):
+            with contextlib.suppress(ReferenceError):
+                collection.remove(block)
+        for image in set(bpy.data.images) - self.images_before:  # the Render Result
+            bpy.data.images.remove(image)
+        self.tmp.cleanup()
+        return False
+
+
+def _read_exr(path: str) -> np.ndarray:
+    """(H, W, 3) float64 linear pixels of an EXR, row 0 at the top."""
+    import OpenImageIO as oiio  # ships with Blender and the bpy wheel
+
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise RuntimeError(f"cannot read the render {path}: {oiio.geterror()}")
+    try:
+        pixels = inp.read_image(0, 0, 0, 3, "float")
+    finally:
+        inp.close()
+    return np.asarray(pixels, dtype=np.float64)
+
+
+def render_sphere_cycles(material, lights, resolution: int = 64, samples: int = 16,
+                         irradiance: float = 1.0) -> list[np.ndarray]:
+    """Cycles images (H, W, 3) of a unit sphere with ``material``, one per light.
+
+    lights: (L, 3) directions towards the light, camera space (+z towards the
+    viewer, +y up), as in :func:`core.render.render_sphere`. Pixels outside the
+    sphere are black. Uses and then removes a temporary scene.
+    """
+    lights = np.atleast_2d(np.asarray(lights, dtype=np.float64))
+    with _TemporaryScene(material, resolution, samples) as tmp:
+        return [tmp.render(light, irradiance) for light in lights]
+
+
+def bake_error(material, table, lights, resolution: int = 64, samples: int = 16,
+               irradiance: float = 1.0, interpolation: str = "trilinear") -> dict:
+    """Relative RMSE of Cycles renders of ``material`` against numpy shading of
+    ``table``, one per light.
+
+    table: (3, 90, 90, 180) BRDF in 1/sr (NaN = unmeasured). lights: (L, 3)
+    directions towards the light in camera space (+z to the viewer), as in
+    :func:`core.render.render_sphere`; the fit used the whole table, so any lights
+    are "held out" in the sense that none was singled out by the fit, but pick
+    ones other than the fit's own ``lobe_fit.ERROR_LIGHTS`` to check the bake
+    independently. The Sun's strength is ``irradiance`` (W/m^2 on a surface facing
+    it), the numpy side uses the same value. Samples: Cycles samples per pixel;
+    with a delta Sun, direct light only and point-sampled pixels the render is
+    nearly noise-free, but Cycles' narrow pixel filter still throws the odd sample
+    into a neighbouring pixel, which 16 samples average away. interpolation: how
+    the table is read between bin centres ("trilinear", or "nearest" for the
+    reference reader's bins, which alone is ~20 % off a 0.013-wide mirror lobe on
+    a 64-pixel sphere, and would be charged to the bake).
+
+    Returns ``{"rel_rmse": [per light], "mean": float, "max": float,
+    "lights": [[x, y, z], ...], "resolution", "samples", "time_s"}``, and
+    ``"model_rel_rmse"`` (numpy evaluation of the material's stored ``brdf_fit``
+    against the table, per light) when the material has one: the difference
+    between the two is Cycles' share of the error.
+    """
+    t0 = time.perf_counter()
+    lights = np.atleast_2d(np.asarray(lights, dtype=np.float64))
+    lights = lights / np.linalg.norm(lights, axis=1, keepdims=True)
+    table = lobe_fit.clean_table(table)
+    normals, mask = render.sphere_normals(resolution)
+    images = render_sphere_cycles(material, lights, resolution, samples, irradiance)
+    stored = material.get("brdf_fit")
+    params = lobe_fit.LobeParams.from_dict(json.loads(stored)) if stored else None
+    rel, model_rel = [], []
+    for light, image in zip(lights, images, strict=True):
+        ref = np.zeros((resolution, resolution, 3))
+        ref[mask] = render.shade(table, normals[mask], light, (0.0, 0.0, 1.0), irradiance,
+                                 interpolation)
+        rel.append(metrics.relative_rmse(np.where(mask[..., None], image, 0.0), ref))
+        if params is not None:
+            model = np.zeros_like(ref)
+            model[mask] = shade_params(params, normals[mask], light, irradiance)
+            model_rel.append(metrics.relative_rmse(model, ref))
+    out = {"rel_rmse": [float(e) for e in rel], "mean": float(np.mean(rel)),
+           "max": float(np.max(rel)), "lights": lights.tolist(), "resolution": resolution,
+           "samples": samples, "time_s": time.perf_counter() - t0}
+    if params is not None:
+        out["model_rel_rmse"] = [float(e) for e in model_rel]
+    return out
+
+
+def shade_params(params, n: np.ndarray, light, irradiance: float = 1.0) -> np.ndarray:
+    """Radiance (N, 3) of the lobe model at normals ``n`` (N, 3), camera space,
+    seen from +z, lit from ``light`` (3,): what Cycles should render."""
+    from ..core import merl
+
+    n = np.asarray(n, dtype=np.float64).reshape(-1, 3)
+    light = np.asarray(light, dtype=np.float64)
+    light = np.broadcast_to(light / np.linalg.norm(light), n.shape)
+    view = np.broadcast_to(np.array([0.0, 0.0, 1.0]), n.shape)
+    rho = lobe_fit.evaluate(params, merl.to_local(n, light), merl.to_local(n, view))
+    cos = np.clip(np.sum(n * light, axis=1), 0.0, None)
+    return rho * cos[:, None] * irradiance

@@ -1,0 +1,276 @@
+"""The method end to end on arrays: photos + G-buffers -> one BRDF table per region.
+
+This is Ono et al. (2017) Fig. 2 after the geometry exists: observations
+(``core.observations``), the reliable region (Sec. 3.1, ``core.reliable``),
+random-subset reconstructions from condition-optimal samples (Sec. 3.2,
+``core.reliable.reconstruct_trials``) and selection by the KL divergence of
+rendered against photographed intensities (``core.selection``, the fast numpy
+path). It knows nothing of Blender: the operators gather the arrays (photos
+read from files, G-buffers rendered by Cycles) and write the result back.
+
+Regions are handled one at a time, as the paper handles one material. A region
+that no photo sees, or that keeps fewer than ``min_reliable_samples`` reliable
+samples, is *skipped with a reason*, never guessed; if every region is skipped,
+:func:`run` raises ``ValueError`` with one sentence.
+
+Long runs report progress through a callback and stop between steps when a
+``cancelled`` callable returns True (raising :class:`Cancelled`), so an
+operator can run this in a worker thread and keep the interface responsive.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from . import observations, reliable, selection
+from .basis import Basis
+
+
+class Cancelled(Exception):
+    """Raised by :func:`run` when its ``cancelled`` callable returns True."""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PhotoInput:
+    """One lit photo and the G-buffers of the scan seen by its camera.
+
+    photo: (H, W, 3) linear radiance (NaN/Inf = unusable pixel). normal,
+    position: (H, W, 3) world space (scene units). visibility: (H, W) in [0, 1].
+    region: (H, W) int, -1 = not the target object. camera_center: (3,) world
+    space. light: (3,) world direction towards the distant light. irradiance:
+    scalar or (3,) on a surface facing the light. mask: optional (H, W) bool of
+    pixels the user allows. name: for reports.
+    """
+
+    photo: np.ndarray
+    normal: np.ndarray
+    position: np.ndarray
+    visibility: np.ndarray
+    region: np.ndarray
+    camera_center: np.ndarray
+    light: np.ndarray
+    irradiance: float | np.ndarray = 1.0
+    mask: np.ndarray | None = None
+    name: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class PipelineSettings:
+    """Every setting of a run (the panel's and the job file's ``[settings]``).
+
+    n_samples: condition-optimal MERL cells per trial (the paper uses 6).
+    n_trials: random-subset reconstructions per region. subset_fraction: share
+    of the reliable samples each trial draws from. min_reliable_samples: a
+    region with fewer reliable samples is skipped. kl_bins: histogram bins of
+    the KL criterion. seed: every random choice; same seed, same result.
+    """
+
+    reliable: reliable.ReliableSettings = reliable.ReliableSettings()
+    observation: observations.ObservationSettings = observations.ObservationSettings()
+    n_samples: int = 20
+    n_trials: int = 16
+    subset_fraction: float = 0.5
+    min_reliable_samples: int = 20
+    kl_bins: int = 64
+    seed: int = 0
+
+    def __post_init__(self):
+        for name in ("n_samples", "n_trials", "min_reliable_samples", "kl_bins"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if not 0 < self.subset_fraction <= 1:
+            raise ValueError(f"subset_fraction must be in (0, 1], got {self.subset_fraction}")
+
+
+@dataclasses.dataclass(eq=False)
+class RegionResult:
+    """Outcome for one region.
+
+    status: "ok" or "skipped" (then ``reason`` says why, in one sentence).
+    counts: samples at each stage: ``observed`` (after the up-front removals,
+    which are in ``removed_up_front``), ``removed`` per reliable stage,
+    ``reliable``. skipped_assumptions: per reliable stage, whether the data
+    rejected its assumption in this region (see ``ReliableSettings``).
+    table: (3, 90, 90, 180) float64 of the chosen trial (None when skipped).
+    candidates: every trial's table as float32, for the Cycles selection path.
+    kl: (T,) KL score per trial, nats; winner: index of the chosen trial.
+    trials: per-trial summaries (condition number, samples used, eta).
+    """
+
+    region: int
+    status: str
+    reason: str = ""
+    counts: dict = dataclasses.field(default_factory=dict)
+    skipped_assumptions: dict = dataclasses.field(default_factory=dict)
+    table: np.ndarray | None = None
+    candidates: list = dataclasses.field(default_factory=list)
+    kl: np.ndarray | None = None
+    winner: int = -1
+    trials: list = dataclasses.field(default_factory=list)
+    selection: dict = dataclasses.field(default_factory=lambda: {"path": "fast"})
+
+    def summary(self) -> dict:
+        """JSON-friendly summary (no arrays) for ``report.json``."""
+        return {
+            "region": int(self.region), "status": self.status, "reason": self.reason,
+            "counts": self.counts, "skipped_assumptions": self.skipped_assumptions,
+            "winner": int(self.winner),
+            "kl": None if self.kl is None else [float(k) for k in self.kl],
+            "trials": self.trials, "selection": self.selection,
+        }
+
+
+@dataclasses.dataclass(eq=False)
+class PipelineResult:
+    """All regions, the per-photo up-front removal counts, and wall time per stage (s)."""
+
+    regions: list
+    photo_counts: list
+    timings: dict
+
+    def summary(self) -> dict:
+        return {"regions": [r.summary() for r in self.regions],
+                "photos": self.photo_counts, "timings_s": self.timings}
+
+
+def _check(cancelled: Callable[[], bool] | None) -> None:
+    if cancelled is not None and cancelled():
+        raise Cancelled("cancelled by the user")
+
+
+def observe_photos(inputs: Sequence[PhotoInput], settings: PipelineSettings,
+                   progress=None, cancelled=None) -> tuple[observations.Samples, list]:
+    """Samples of every photo, concatenated (view index = position in ``inputs``),
+    and per photo a dict of the samples kept and the pixels removed per reason."""
+    parts = []
+    for i, p in enumerate(inputs):
+        _check(cancelled)
+        if progress:
+            progress(i / max(len(inputs), 1), f"observing photo {i + 1}/{len(inputs)}")
+        parts.append(observations.observe(
+            p.photo, p.normal, p.position, p.visibility, p.region, p.camera_center, p.light,
+            p.irradiance, p.mask, view_index=i, settings=settings.observation))
+    counts = [dict(name=p.name, samples=len(part), removed=part.removed)
+              for p, part in zip(inputs, parts, strict=True)]
+    return observations.concatenate(parts), counts
+
+
+def region_views(inputs: Sequence[PhotoInput], region: int) -> list[selection.View]:
+    """The photos that see ``region``, as KL views masked to that region's pixels."""
+    views = []
+    for p in inputs:
+        mask = np.asarray(p.region) == region
+        if p.mask is not None:
+            mask &= np.asarray(p.mask, dtype=bool)
+        if not mask.any():
+            continue
+        views.append(selection.View(photo=p.photo, normal=p.normal, visibility=p.visibility,
+                                    mask=mask, position=p.position,
+                                    camera_center=p.camera_center, light=p.light,
+                                    irradiance=p.irradiance))
+    return views
+
+
+def run_region(
+    basis: Basis,
+    samples: observations.Samples,
+    inputs: Sequence[PhotoInput],
+    region: int,
+    settings: PipelineSettings,
+    rng: np.random.Generator,
+    progress=None,
+    cancelled=None,
+) -> RegionResult:
+    """Reliable region, trials and KL selection for one region's samples."""
+    sel = np.flatnonzero(samples.region == region)
+    result = RegionResult(region=int(region), status="skipped",
+                          counts={"observed": int(len(sel))})
+    if len(sel) == 0:
+        result.reason = f"region {region}: no photo sees it with usable pixels"
+        return result
+    try:
+        cand, report = reliable.reliable_candidates(samples.subset(sel), settings.reliable)
+    except ValueError as error:
+        result.reason = f"region {region}: {error}"
+        return result
+    result.counts.update(removed=report.removed, reliable=report.kept)
+    result.skipped_assumptions = report.skipped
+    if report.kept < settings.min_reliable_samples:
+        result.reason = (f"region {region}: only {report.kept} reliable samples "
+                         f"(fewer than {settings.min_reliable_samples})")
+        return result
+    trials = []
+    for t, child in enumerate(rng.spawn(settings.n_trials)):
+        _check(cancelled)
+        if progress:
+            progress(t / settings.n_trials, f"region {region}: trial {t + 1}/{settings.n_trials}")
+        trials += reliable.reconstruct_trials(basis, cand, settings.n_samples, 1, child,
+                                              settings.subset_fraction, report.peaks)
+    _check(cancelled)
+    if progress:
+        progress(1.0, f"region {region}: KL selection over {len(trials)} trials")
+    chosen = selection.select_by_kl([rec.table for rec, _ in trials],
+                                    region_views(inputs, region), n_bins=settings.kl_bins)
+    result.status = "ok"
+    result.kl = chosen.kl
+    result.winner = int(chosen.winner)
+    result.table = trials[chosen.winner][0].table
+    result.candidates = [rec.table.astype(np.float32) for rec, _ in trials]
+    result.trials = [dict(rec.summary(), samples_used=int(len(used))) for rec, used in trials]
+    return result
+
+
+def run(
+    basis: Basis,
+    inputs: Sequence[PhotoInput],
+    settings: PipelineSettings | None = None,
+    regions: Sequence[int] | None = None,
+    progress: Callable[[float, str], None] | None = None,
+    cancelled: Callable[[], bool] | None = None,
+) -> PipelineResult:
+    """Reconstruct one BRDF per region from lit photos and their G-buffers.
+
+    ``regions``: the region ids to reconstruct (default: every id >= 0 seen in
+    any G-buffer). ``progress(fraction, message)`` is called between steps with
+    fraction in [0, 1]; ``cancelled()`` is polled between steps. Raises
+    ValueError with one sentence when no photo is given or every region is
+    skipped, and :class:`Cancelled` when cancelled.
+    """
+    settings = settings or PipelineSettings()
+    if not inputs:
+        raise ValueError("no lit photos to reconstruct from")
+    timings = {}
+
+    def stage_progress(lo, hi):
+        if progress is None:
+            return None
+        return lambda f, msg: progress(lo + (hi - lo) * f, msg)
+
+    t0 = time.perf_counter()
+    samples, photo_counts = observe_photos(inputs, settings, stage_progress(0.0, 0.1),
+                                           cancelled)
+    timings["observations"] = time.perf_counter() - t0
+    if regions is None:
+        seen = set()
+        for p in inputs:
+            seen.update(int(r) for r in np.unique(p.region) if r >= 0)
+        regions = sorted(seen)
+    if not regions:
+        raise ValueError("the target object is not seen in any photo")
+    rng = np.random.default_rng(settings.seed)
+    results = []
+    t0 = time.perf_counter()
+    for i, (region, child) in enumerate(zip(regions, rng.spawn(len(regions)), strict=True)):
+        lo = 0.1 + 0.9 * i / len(regions)
+        results.append(run_region(basis, samples, inputs, int(region), settings, child,
+                                  stage_progress(lo, lo + 0.9 / len(regions)), cancelled))
+    timings["reliable_trials_selection"] = time.perf_counter() - t0
+    if not any(r.status == "ok" for r in results):
+        raise ValueError("no reliable pixels in any region: "
+                         + "; ".join(r.reason for r in results))
+    return PipelineResult(regions=results, photo_counts=photo_counts, timings=timings)
+

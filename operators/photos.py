@@ -1,0 +1,135 @@
+"""Add and remove lit photos: ``brdf.add_photos``, ``brdf.remove_photo``.
+
+Each photo is matched to a camera by image name: the camera's
+``brdf_image_name`` (set by the COLMAP import), or else its object name,
+compared with the photo's file name, first whole and then without the
+extension (a lit ``0012.exr`` matches COLMAP's ``0012.jpg``). A photo that
+matches no camera, or more than one, is listed and not added: never guessed.
+"""
+
+import os
+
+import bpy
+from bpy.props import CollectionProperty, IntProperty, StringProperty
+from bpy.types import OperatorFileListElement
+
+
+def _stem(name: str) -> str:
+    return os.path.splitext(os.path.basename(name))[0]
+
+
+def camera_names(obj) -> tuple[str, str]:
+    """(image name, object name) a photo may match for a camera object."""
+    return str(obj.get("brdf_image_name", "")), obj.name
+
+
+def match_camera(scene, filename: str):
+    """The one camera object of ``scene`` matching ``filename``; ValueError otherwise."""
+    base = os.path.basename(filename)
+    cameras = [o for o in scene.objects if o.type == "CAMERA"]
+    for key in (lambda n: n, _stem):
+        hits = [c for c in cameras
+                if key(base) in {key(n) for n in camera_names(c) if n}]
+        if len(hits) == 1:
+            return hits[0]
+        if len(hits) > 1:
+            names = ", ".join(sorted(c.name for c in hits))
+            raise ValueError(f"photo {base} matches several cameras ({names})")
+    raise ValueError(f"photo {base} matches no camera by image name")
+
+
+def add_photos(scene, paths) -> tuple[list, list[str]]:
+    """Append one ``scene.brdf.photos`` entry per matched path.
+
+    Returns (added entries, one message per photo not added). A path already in
+    the list is not added twice. New entries take the light of the last entry
+    (often all photos share one light), else the scene's first Sun object.
+    """
+    settings = scene.brdf
+    existing = {bpy.path.abspath(p.filepath) for p in settings.photos}
+    template = settings.photos[-1] if len(settings.photos) else None
+    suns = [o for o in scene.objects if o.type == "LIGHT" and o.data.type == "SUN"]
+    added, unmatched = [], []
+    for path in paths:
+        if bpy.path.abspath(path) in existing:
+            unmatched.append(f"photo {os.path.basename(path)} is already in the list")
+            continue
+        try:
+            camera = match_camera(scene, path)
+        except ValueError as error:
+            unmatched.append(str(error))
+            continue
+        entry = settings.photos.add()
+        entry.name = os.path.basename(path)
+        entry.filepath = path
+        entry.camera = camera
+        if template is not None:
+            for key in ("light_source", "sun", "direction", "irradiance"):
+                setattr(entry, key, getattr(template, key))
+        elif suns:
+            entry.sun = suns[0]
+        added.append(entry)
+    settings.active_photo = max(len(settings.photos) - 1, 0)
+    return added, unmatched
+
+
+class BRDF_OT_add_photos(bpy.types.Operator):
+    """Add lit photos; each is matched to a camera by image name"""
+
+    bl_idname = "brdf.add_photos"
+    bl_label = "Add Lit Photos"
+    bl_options = {"REGISTER", "UNDO"}
+
+    directory: StringProperty(subtype="DIR_PATH")
+    files: CollectionProperty(type=OperatorFileListElement)
+    filter_image: bpy.props.BoolProperty(default=True, options={"HIDDEN"})
+
+    @classmethod
+    def poll(cls, context):
+        return hasattr(context.scene, "brdf") and not context.scene.brdf.running
+
+    def invoke(self, context, _event):
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def execute(self, context):
+        paths = [os.path.join(self.directory, f.name) for f in self.files if f.name]
+        if not paths:
+            self.report({"ERROR"}, "Choose one or more photo files")
+            return {"CANCELLED"}
+        added, unmatched = add_photos(context.scene, paths)
+        for message in unmatched:
+            self.report({"WARNING"}, message)
+        if not added:
+            self.report({"ERROR"}, f"No photo added: {len(unmatched)} not matched to a camera")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Added {len(added)} photo(s), {len(unmatched)} not matched")
+        return {"FINISHED"}
+
+
+class BRDF_OT_remove_photo(bpy.types.Operator):
+    """Remove the photo from the list (the file is not touched)"""
+
+    bl_idname = "brdf.remove_photo"
+    bl_label = "Remove Photo"
+    bl_options = {"REGISTER", "UNDO"}
+
+    index: IntProperty(default=-1, description="Entry to remove (-1 = the active one)")
+
+    @classmethod
+    def poll(cls, context):
+        return (hasattr(context.scene, "brdf") and len(context.scene.brdf.photos) > 0
+                and not context.scene.brdf.running)
+
+    def execute(self, context):
+        settings = context.scene.brdf
+        index = settings.active_photo if self.index < 0 else self.index
+        if not 0 <= index < len(settings.photos):
+            self.report({"ERROR"}, f"No photo number {index}")
+            return {"CANCELLED"}
+        settings.photos.remove(index)
+        settings.active_photo = min(settings.active_photo, max(len(settings.photos) - 1, 0))
+        return {"FINISHED"}
+
+
+CLASSES = (BRDF_OT_add_photos, BRDF_OT_remove_photo)

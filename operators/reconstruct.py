@@ -1,0 +1,121 @@
+"""Reconstruct the BRDF of every region: ``brdf.reconstruct``.
+
+Observations -> reliable region -> trials -> KL selection -> bake, per region
+(``brdf_addon.runner``). Interactive: modal, one bounded step per timer tick
+(one photo's G-buffers, or a poll of the worker thread that runs the numpy
+science), with a progress bar and Esc to cancel, which leaves the scene as it
+was. Background mode (batch, tests): the same steps, synchronously.
+"""
+
+import bpy
+
+from ..core import pipeline
+
+
+def _runner():
+    # brdf_addon imports this package to register it: import its runner late
+    from ..brdf_addon import runner
+
+    return runner
+
+
+def _ready(context) -> bool:
+    s = getattr(context.scene, "brdf", None)
+    return s is not None and not s.running and s.target is not None and len(s.photos) > 0
+
+
+class BRDF_OT_reconstruct(bpy.types.Operator):
+    """Reconstruct a BRDF per region from the lit photos (Esc cancels)"""
+
+    bl_idname = "brdf.reconstruct"
+    bl_label = "Reconstruct BRDF"
+    bl_options = {"REGISTER", "UNDO"}
+
+    _run = None
+    _timer = None
+
+    @classmethod
+    def poll(cls, context):
+        return _ready(context)
+
+    def execute(self, context):
+        try:
+            report = _runner().ReconstructRun(context.scene, threaded=False).run()
+        except (ValueError, OSError, pipeline.Cancelled) as error:
+            self.report({"ERROR"}, _sentence(error))
+            return {"CANCELLED"}
+        self._report_done(report)
+        return {"FINISHED"}
+
+    def invoke(self, context, _event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        try:
+            self._run = _runner().ReconstructRun(context.scene, threaded=True)
+        except ValueError as error:
+            self.report({"ERROR"}, _sentence(error))
+            return {"CANCELLED"}
+        settings = context.scene.brdf
+        self._status = settings.status
+        settings.running, settings.progress = True, 0.0
+        wm = context.window_manager
+        wm.progress_begin(0.0, 1.0)
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._run.cancel()
+            return {"RUNNING_MODAL"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        settings = context.scene.brdf
+        try:
+            done = self._run.step()
+        except pipeline.Cancelled:
+            self._finish(context)
+            settings.status = self._status
+            self.report({"WARNING"}, "Reconstruction cancelled; nothing was changed")
+            return {"CANCELLED"}
+        except (ValueError, OSError) as error:
+            self._finish(context)
+            self.report({"ERROR"}, _sentence(error))
+            return {"CANCELLED"}
+        settings.progress = self._run.progress
+        context.window_manager.progress_update(self._run.progress)
+        context.workspace.status_text_set(f"BRDF: {self._run.message} (Esc to cancel)")
+        for area in context.screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+        if not done:
+            return {"RUNNING_MODAL"}
+        self._finish(context)
+        self._report_done(self._run.report)
+        return {"FINISHED"}
+
+    def _finish(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        context.workspace.status_text_set(None)
+        context.scene.brdf.running = False
+        context.scene.brdf.progress = 0.0
+
+    def _report_done(self, report):
+        ok = [r for r in report["regions"] if r["status"] == "ok"]
+        skipped = [r for r in report["regions"] if r["status"] != "ok"]
+        for r in skipped:
+            self.report({"WARNING"}, f"Skipped {r['label']}: {r['reason']}")
+        self.report({"INFO"}, f"Reconstructed {len(ok)} region(s); "
+                    f"{len(skipped)} skipped")
+
+
+def _sentence(error) -> str:
+    text = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+    return text[:1].upper() + text[1:]
+
+
+CLASSES = (BRDF_OT_reconstruct,)

@@ -1,0 +1,94 @@
+"""The batch entry's exit codes and outputs, run as a pipeline user runs it:
+``python -m brdf_reconstruct.brdf_addon.batch job.toml`` in a fresh process."""
+
+import hashlib
+import json
+import math
+import subprocess
+import sys
+
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+import blender_scene as BS  # noqa: E402
+
+GOOD = f"""
+blend = "scene.blend"
+object = "Scan"
+out = "out"
+
+[settings]
+curvature_threshold = 1.5   # a 48-pixel photo (see test_blender_workflow)
+samples = 12
+trials = 2
+seed = 4
+
+[[photo]]
+image = "view0.exr"
+camera = "{BS.IMAGE_NAME}"
+light = "Sun"
+irradiance = {math.pi}
+"""
+
+
+@pytest.fixture(scope="module")
+def job_dir(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("batch")
+    BS.build(tmp)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp / "scene.blend"))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return tmp
+
+
+def _run(job_dir, text, name="job.toml"):
+    (job_dir / name).write_text(text)
+    return subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch",
+                           str(job_dir / name)], capture_output=True, text=True, timeout=600)
+
+
+def _digest(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_good_job_exits_0_with_outputs(job_dir):
+    blend, photo = _digest(job_dir / "scene.blend"), _digest(job_dir / "view0.exr")
+    result = _run(job_dir, GOOD)
+    assert result.returncode == 0, result.stderr
+    out = job_dir / "out"
+    assert {"brdf_0.binary", "report.json", "scene.blend", "brdf_0_slice.png"} <= {
+        p.name for p in out.iterdir()}
+    report = json.loads((out / "report.json").read_text())
+    assert report["settings"]["trials"] == 2 and report["regions"][0]["status"] == "ok"
+    assert _digest(job_dir / "scene.blend") == blend  # the job's .blend is never written
+    assert _digest(job_dir / "view0.exr") == photo
+
+
+def test_same_seed_same_table(job_dir):
+    a = _run(job_dir, GOOD.replace('out = "out"', 'out = "a"'), "a.toml")
+    b = _run(job_dir, GOOD.replace('out = "out"', 'out = "b"'), "b.toml")
+    assert a.returncode == b.returncode == 0
+    assert _digest(job_dir / "a" / "brdf_0.binary") == _digest(job_dir / "b" / "brdf_0.binary")
+
+
+@pytest.mark.parametrize("change, message", [
+    (('image = "view0.exr"', 'image = "missing.exr"'), "photo 1 image not found"),
+    ((f'camera = "{BS.IMAGE_NAME}"', 'camera = "nope.jpg"'), "unknown camera name nope.jpg"),
+    (('light = "Sun"', 'light = {sun = {date = "2026-06-21 02:00:00", latitude = 48.1, '
+                       'longitude = 11.6}}'), "below the horizon"),
+    (("curvature_threshold = 1.5", "curvature_threshold = 0.0\nuse_brightest = false"),
+     "No reliable pixels"),
+    (('object = "Scan"', 'object = "Nothing"'), "no mesh object named Nothing"),
+    (("seed = 4", "sede = 4"), "unknown settings: sede"),
+])
+def test_bad_job_exits_1_with_one_line(job_dir, change, message):
+    result = _run(job_dir, GOOD.replace(*change), "bad.toml")
+    assert result.returncode == 1, result.stderr
+    errors = [ln for ln in result.stderr.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 1 and message in errors[0], result.stderr
+
+
+def test_wrong_command_line_exits_2():
+    result = subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2 and "usage" in result.stderr

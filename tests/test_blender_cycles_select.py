@@ -1,0 +1,71 @@
+"""The accurate (Cycles) selection path against the fast (numpy) one, on the tiny
+scene whose photo Cycles rendered with a known Lambertian material."""
+
+import math
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+import blender_scene as BS  # noqa: E402
+
+import brdf_reconstruct  # noqa: E402
+from brdf_reconstruct.brdf_addon import cycles_select, runner  # noqa: E402
+from brdf_reconstruct.core import database, merl, pipeline, selection  # noqa: E402
+from brdf_reconstruct.operators import photos  # noqa: E402
+
+
+def _lambert(albedo):
+    t = np.full((3, merl.N_CELLS), np.nan)
+    t[:, merl.valid_cells()] = albedo / np.pi
+    return t.reshape(3, *merl.SHAPE)
+
+
+@pytest.fixture
+def tiny(tmp_path):
+    built = BS.build(tmp_path)
+    brdf_reconstruct.register()
+    s = built["scene"].brdf
+    s.target = built["scan"]
+    s.output_dir = str(tmp_path / "out")
+    s.curvature_threshold = 1.5  # 48-pixel photo, see test_blender_workflow
+    s.samples, s.trials = 12, 2
+    (p,), _ = photos.add_photos(built["scene"], [str(built["photo"])])
+    p.irradiance = (BS.lit_irradiance(),) * 3
+    try:
+        yield built
+    finally:
+        brdf_reconstruct.unregister()
+
+
+def test_both_paths_pick_the_true_material(tiny):
+    scene = tiny["scene"]
+    inputs = runner.gather(scene)
+    gold = next(s for s in database.heldout_specs() if s["name"] == "heldout_gold_medium")
+    tables = [_lambert(0.25), _lambert(BS.ALBEDO), database.make_table(gold),
+              _lambert(0.9)]
+    fast = selection.select_by_kl(tables, pipeline.region_views(inputs, 0))
+    blocks = {k: len(getattr(bpy.data, k)) for k in ("materials", "node_groups", "objects",
+                                                     "scenes", "meshes", "lights")}
+    kl, winner = cycles_select.select_by_cycles(scene, inputs, 0, tables, samples=16)
+    assert fast.winner == winner == 1
+    # the same ranking, and a clear margin on both paths
+    assert list(np.argsort(fast.kl)) == list(np.argsort(kl))
+    print("fast KL", np.round(fast.kl, 4), "Cycles KL", np.round(kl, 4))
+    for score in (fast.kl, kl):
+        assert score[1] < 0.5 * np.sort(score)[1]
+    assert {k: len(getattr(bpy.data, k)) for k in blocks} == blocks  # nothing left behind
+
+
+def test_reconstruct_with_the_cycles_path_records_both(tiny):
+    scene = tiny["scene"]
+    scene.brdf.kl_path = "CYCLES"
+    scene.brdf.kl_samples = 16
+    report = runner.ReconstructRun(scene, threaded=False, bake=False).run()
+    sel = report["regions"][0]["selection"]
+    assert sel["path"] == "cycles" and sel["cycles_samples"] == 16
+    assert len(sel["fast_kl"]) == len(report["regions"][0]["kl"]) == 2
+    assert isinstance(sel["agree"], bool)
+    table = merl.read(scene.brdf.results[0].table_path)
+    assert np.nanmedian(table[:, :30, :30]) == pytest.approx(BS.ALBEDO / math.pi, rel=0.05)
