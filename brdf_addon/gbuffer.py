@@ -54,6 +54,8 @@ import OpenImageIO as oiio
 from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
+# Sculpt face sets: the integer face attribute Blender keeps them in.
+FACE_SET_ATTRIBUTE = ".sculpt_face_set"
 # Names of the temporary data-blocks (Blender may add a suffix on a clash).
 _NAME = "BRDF_GBuffer"
 _REGION_AOV = "brdf_region"
@@ -120,6 +122,7 @@ def render_gbuffers(
     samples: int = 1,
     tmpdir: str | os.PathLike | None = None,
     device: str = "CPU",
+    region_attribute: str = "material_index",
 ) -> GBuffers:
     """Render the G-buffers of mesh object ``obj`` seen by ``camera`` under a distant light.
 
@@ -136,6 +139,10 @@ def render_gbuffers(
     filter (with rare outliers turning a normal by up to ~1 degree) and only help
     a soft-edged light, which this one is not. tmpdir: folder for the
     temporary EXR (default: the system's). device: Cycles device, 'CPU' or 'GPU'.
+    region_attribute: the integer face attribute that gives the region id:
+    ``"material_index"`` (the material slot; indices past the last slot count as
+    the last, as Blender renders them) or ``FACE_SET_ATTRIBUTE`` (sculpt face
+    sets; a mesh without face sets is region 0).
 
     Returns :class:`GBuffers` of shape (H, W). Raises ValueError for a wrong
     object or camera type, a bad light direction, resolution or sample count.
@@ -155,12 +162,16 @@ def render_gbuffers(
         raise ValueError(f"samples must be a positive integer, got {samples}")
     if device not in ("CPU", "GPU"):
         raise ValueError(f"device must be 'CPU' or 'GPU', got {device!r}")
+    if region_attribute not in ("material_index", FACE_SET_ATTRIBUTE):
+        raise ValueError(f"region_attribute must be 'material_index' or "
+                         f"{FACE_SET_ATTRIBUTE!r}, got {region_attribute!r}")
     user_scene = bpy.context.scene
     width, height = _resolution(camera, user_scene, resolution)
 
     images_before = set(bpy.data.images)
     try:
-        with _TemporaryScene(obj, camera, light, user_scene, width, height) as scene:
+        with _TemporaryScene(obj, camera, light, user_scene, width, height,
+                             region_attribute) as scene:
             _configure_cycles(scene, int(samples), device)
             cam_eval, window = _crop_window(scene, obj, camera, width, height) if crop else (
                 _evaluated(scene, camera), None)
@@ -180,7 +191,8 @@ def render_gbuffers(
         # Rendering creates the "Render Result" image if there was none; drop it again.
         for image in set(bpy.data.images) - images_before:
             bpy.data.images.remove(image)
-    return _assemble(channels, light=light, slots=len(obj.material_slots), center=center,
+    slots = len(obj.material_slots) if region_attribute == "material_index" else None
+    return _assemble(channels, light=light, slots=slots, center=center,
                      ortho=ortho, window=window)
 
 
@@ -239,8 +251,10 @@ def _resolution(camera, scene, resolution) -> tuple[int, int]:
 class _TemporaryScene:
     """A scene with the scan, the camera and a Sun; removed with all it created."""
 
-    def __init__(self, obj, camera, light, user_scene, width, height):
+    def __init__(self, obj, camera, light, user_scene, width, height,
+                 region_attribute="material_index"):
         self.obj, self.camera, self.light = obj, camera, light
+        self.region_attribute = region_attribute
         self.user_scene, self.width, self.height = user_scene, width, height
         self.created = []  # (collection, data-block), removed in reverse order
 
@@ -319,10 +333,11 @@ class _TemporaryScene:
         diffuse.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
         diffuse.inputs["Roughness"].default_value = 0.0  # Lambertian
         links.new(diffuse.outputs["BSDF"], output.inputs["Surface"])
-        # Cycles exposes the face attribute material_index to shaders (checked in tests).
+        # Cycles exposes the face attributes material_index and .sculpt_face_set to
+        # shaders (checked in tests); a missing attribute reads 0.
         attribute = nodes.new("ShaderNodeAttribute")
         attribute.attribute_type = "GEOMETRY"
-        attribute.attribute_name = "material_index"
+        attribute.attribute_name = self.region_attribute
         aov = nodes.new("ShaderNodeOutputAOV")
         aov.aov_name = _REGION_AOV
         links.new(attribute.outputs["Fac"], aov.inputs["Value"])
@@ -442,8 +457,9 @@ def _assemble(channels, *, light, slots, center, ortho, window) -> GBuffers:
         cosine = normal @ light
         lit = mask & (cosine > _MIN_COSINE)
         visibility = np.where(lit, np.clip(direct / np.where(lit, cosine, 1.0), 0.0, 1.0), 0.0)
-        # Blender renders a face whose index is past the last slot with the last slot.
-        region_value = np.clip(np.rint(np.where(mask, region_value, 0.0)), 0, max(slots - 1, 0))
+        region_value = np.rint(np.where(mask, region_value, 0.0))
+        if slots is not None:  # a face whose index is past the last slot renders with it
+            region_value = np.clip(region_value, 0, max(slots - 1, 0))
         region = np.where(mask, region_value, -1)
     return GBuffers(normal=normal, position=position, visibility=visibility,
                     region=region.astype(np.int32), mask=mask, camera_center=center,

@@ -49,9 +49,8 @@ class BRDF_PT_main(_BRDFPanel, Panel):
         layout.label(text="Scan", icon="MESH_DATA")
         layout.prop(s, "target")
         layout.prop(s, "region_mode")
-        if s.target is not None and s.target.type == "MESH":
-            n = max(len(s.target.material_slots), 1)
-            layout.label(text=f"{n} region(s)")
+        if s.target is not None and s.target.type == "MESH" and s.region_mode == "MATERIAL_SLOT":
+            layout.label(text=f"{max(len(s.target.material_slots), 1)} region(s)")
 
 
 class BRDF_PT_cameras(_BRDFPanel, Panel):

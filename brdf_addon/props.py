@@ -128,7 +128,9 @@ class BRDFSettings(PropertyGroup):
     region_mode: EnumProperty(
         name="Regions", default="MATERIAL_SLOT",
         items=[("MATERIAL_SLOT", "Material Slots", "One BRDF per material slot (an object "
-                "without slots is one region)")])
+                "without slots is one region)"),
+               ("FACE_SET", "Face Sets", "One BRDF per sculpt face set (a mesh without "
+                "face sets is one region)")])
     photos: CollectionProperty(type=BRDFPhoto)
     active_photo: IntProperty(name="Active Photo", default=0, min=0)
 

@@ -34,8 +34,16 @@ from . import gbuffer, prefs, props
 BAKE_LIGHTS = np.array([[0.3, 0.2, 0.93], [-0.5, 0.4, 0.77]])
 
 
-def region_labels(obj) -> dict[int, str]:
-    """Region id -> a readable name (the material slot's material, or "slot N")."""
+def region_labels(obj, mode: str = "MATERIAL_SLOT") -> dict[int, str]:
+    """Region id -> a readable name (the material slot's material, or "slot N";
+    "face set N")."""
+    if mode == "FACE_SET":
+        attribute = obj.data.attributes.get(gbuffer.FACE_SET_ATTRIBUTE) if obj else None
+        if attribute is None:
+            return {0: obj.name if obj is not None else "region 0"}
+        ids = np.zeros(len(attribute.data), dtype=np.int32)
+        attribute.data.foreach_get("value", ids)
+        return {int(i): f"face set {int(i)}" for i in np.unique(ids)}
     if obj is None or not obj.material_slots:
         return {0: obj.name if obj is not None else "region 0"}
     return {i: (slot.material.name if slot.material else f"slot {i}")
@@ -91,8 +99,10 @@ def gather_photo(scene, photo) -> pipeline.PhotoInput:
     mask = None
     if photo.mask_path:
         mask = photo_io.read_mask(bpy.path.abspath(photo.mask_path), (h, w))
+    attribute = ("material_index" if scene.brdf.region_mode == "MATERIAL_SLOT"
+                 else gbuffer.FACE_SET_ATTRIBUTE)
     g = gbuffer.render_gbuffers(scene.brdf.target, photo.camera, light, resolution=(w, h),
-                                device=prefs.cycles_device())
+                                device=prefs.cycles_device(), region_attribute=attribute)
     if not g.mask.any():
         raise ValueError(f"the scan is not in view of photo {photo.name}'s camera")
     cosine = np.einsum("hwc,c->hw", g.normal, light)
@@ -122,15 +132,17 @@ def _as_image(name: str, picture: np.ndarray) -> bpy.types.Image:
 
 
 def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
-               bake: bool = True) -> dict:
+               bake: bool = True, fits: dict | None = None) -> dict:
     """Write tables, pictures, materials and ``report.json``; fill ``scene.brdf.results``.
 
     Returns the report dict. Existing files of the same name in the output
     folder are replaced (they are this tool's outputs); nothing else is.
+    ``fits``: {region: (winner, LobeFit)} made beforehand off the main thread;
+    a region whose winner changed since (Cycles selection) is fitted here.
     """
     settings = scene.brdf
     out = output_dir(scene)
-    labels = region_labels(settings.target)
+    labels = region_labels(settings.target, settings.region_mode)
     settings.results.clear()
     regions = []
     for r in result.regions:
@@ -165,7 +177,9 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
             timings[f"outputs_region_{r.region}"] = time.perf_counter() - t0
             if bake:
                 t0 = time.perf_counter()
-                summary["material"] = _bake(scene, r, label, table_path, entry)
+                fit = (fits or {}).get(r.region)
+                fit = fit[1] if fit is not None and fit[0] == r.winner else None
+                summary["material"] = _bake(scene, r, label, table_path, entry, fit)
                 timings[f"bake_region_{r.region}"] = time.perf_counter() - t0
         regions.append(summary)
     report = {
@@ -174,18 +188,31 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
         "photos": result.photo_counts,
         "regions": regions,
         "timings_s": timings | {f"pipeline_{k}": v for k, v in result.timings.items()},
+        "cycles": {
+            # the fewest each comparison needs, as measured (see the README)
+            "gbuffers": {"samples": 1, "bounces": 0, "pixel_filter_px": 0.01,
+                         "why": "one sample at the pixel centre is exact geometry; "
+                                "tests/test_blender_gbuffer.py"},
+            "selection": {"path": settings.kl_path.lower(),
+                          "samples": settings.kl_samples if settings.kl_path == "CYCLES"
+                          else None, "bounces": 0,
+                          "why": "bench/results/cycles_kl.json: the candidates' ranking "
+                                 "is the same from 1 sample to 256"},
+            "device": prefs.cycles_device(),
+        },
         "blender": bpy.app.version_string,
     }
     (out / "report.json").write_text(json.dumps(report, indent=1, default=_json_default))
     return report
 
 
-def _bake(scene, r, label, table_path, entry) -> dict:
-    """Fit the Cycles lobes to the table, build a NEW material, measure its bake error."""
+def _bake(scene, r, label, table_path, entry, fit=None) -> dict:
+    """Fit the Cycles lobes to the table (unless given), build a NEW material,
+    measure its bake error."""
     from ..core import lobe_fit
     from . import material
 
-    fit = lobe_fit.fit(r.table)
+    fit = fit if fit is not None else lobe_fit.fit(r.table)
     provenance = {"table_path": str(table_path),
                   "settings": props.settings_dict(scene.brdf),
                   "region": int(r.region), "kl": float(r.kl[r.winner]), "trial": int(r.winner)}
@@ -231,6 +258,7 @@ class ReconstructRun:
         self._outcome = None
         self._timings = {}
         self._cycles_queue = None
+        self._fits = {}
         self._t0 = time.perf_counter()
         check_scene(scene)
         self._settings = props.pipeline_settings(scene.brdf)
@@ -251,8 +279,18 @@ class ReconstructRun:
             def progress(f, msg):
                 self.progress, self.message = 0.3 + 0.6 * f, msg
 
-            self._outcome = ("ok", pipeline.run(basis, self._inputs, self._settings,
-                                                progress=progress, cancelled=self._cancelled))
+            result = pipeline.run(basis, self._inputs, self._settings, progress=progress,
+                                  cancelled=self._cancelled)
+            if self.bake:  # the lobe fits are numpy: here, not in the main thread
+                from ..core import lobe_fit
+
+                for r in result.regions:
+                    if self._cancel:
+                        raise pipeline.Cancelled("cancelled by the user")
+                    if r.status == "ok":
+                        self.message = f"region {r.region}: fitting the material"
+                        self._fits[r.region] = (r.winner, lobe_fit.fit(r.table))
+            self._outcome = ("ok", result)
         except pipeline.Cancelled as error:
             self._outcome = ("cancelled", error)
         except (ValueError, OSError) as error:
@@ -293,7 +331,8 @@ class ReconstructRun:
             return False
         self.message, self.progress = "writing results", 0.9
         self._timings["total_before_outputs"] = time.perf_counter() - self._t0
-        self.report = write_back(self.scene, self._inputs, value, self._timings, self.bake)
+        self.report = write_back(self.scene, self._inputs, value, self._timings, self.bake,
+                                 self._fits)
         self.progress, self.message = 1.0, "done"
         return True
 

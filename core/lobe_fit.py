@@ -143,6 +143,20 @@ class LobeParams:
         }
 
     @classmethod
+    def build(cls, diffuse=(0.0, 0.0, 0.0), lobes=(), sheen=(0.0, 0.0, 0.0),
+              sigma: float = 0.5) -> LobeParams:
+        """From plain values; lobes: (distribution, (3,) color, grazing, alpha) tuples."""
+        return cls(
+            diffuse=np.array(diffuse, dtype=np.float64),
+            colors=np.array([lobe[1] for lobe in lobes], dtype=np.float64).reshape(-1, 3),
+            grazing=np.array([lobe[2] for lobe in lobes], dtype=np.float64),
+            alphas=np.array([lobe[3] for lobe in lobes], dtype=np.float64),
+            sheen=np.array(sheen, dtype=np.float64),
+            sheen_sigma=sigma,
+            distributions=tuple(lobe[0] for lobe in lobes),
+        )
+
+    @classmethod
     def from_dict(cls, d: dict) -> LobeParams:
         """Inverse of :meth:`to_dict`. Optional: ``grazing`` (0), ``distribution``
         ("ggx"), ``sheen`` (none); a lobe may give ``roughness`` instead of ``alpha``."""

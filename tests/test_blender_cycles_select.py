@@ -26,11 +26,7 @@ def _lambert(albedo):
 def tiny(tmp_path):
     built = BS.build(tmp_path)
     brdf_reconstruct.register()
-    s = built["scene"].brdf
-    s.target = built["scan"]
-    s.output_dir = str(tmp_path / "out")
-    s.curvature_threshold = 1.5  # 48-pixel photo, see test_blender_workflow
-    s.samples, s.trials = 12, 2
+    BS.settings_for_tiny_runs(built, tmp_path / "out")
     (p,), _ = photos.add_photos(built["scene"], [str(built["photo"])])
     p.irradiance = (BS.lit_irradiance(),) * 3
     try:

@@ -280,6 +280,24 @@ def test_region_is_material_slot():
     assert np.allclose(g.visibility[m], 1.0, atol=1e-4)
 
 
+def test_region_is_face_set():
+    strip = _strip()
+    face_sets = strip.data.attributes.new(gbuffer.FACE_SET_ATTRIBUTE, "INT", "FACE")
+    face_sets.data.foreach_set("value", [3, 12, 3])  # slots say 0, 1, 1
+    cam = _camera((0.013, 0.029, 5.0), (0.013, 0.029, 0.0), ortho=True, width=64, height=32)
+    g = gbuffer.render_gbuffers(strip, cam, [0.0, 0.0, 1.0],
+                                region_attribute=gbuffer.FACE_SET_ATTRIBUTE)
+    x, m = g.position[..., 0], g.mask
+    left, middle, right = m & (x < -0.52), m & (x > -0.48) & (x < 0.48), m & (x > 0.52)
+    assert np.all(g.region[left] == 3) and np.all(g.region[right] == 3)
+    assert np.all(g.region[middle] == 12)  # face-set ids as they are, no slot clamp
+    assert np.all(g.region[~m] == -1)
+    plain = _strip()  # no face sets: one region
+    g = gbuffer.render_gbuffers(plain, cam, [0.0, 0.0, 1.0],
+                                region_attribute=gbuffer.FACE_SET_ATTRIBUTE)
+    assert set(np.unique(g.region[g.mask])) == {0}
+
+
 def test_crop_matches_full_frame():
     cam = _camera((0.3, -6.0, 2.1), CENTER, width=96, height=72)
     sphere = _sphere()

@@ -26,17 +26,7 @@ LIGHTS = np.array([[0.3, 0.2, 0.9], render.REFERENCE_LIGHT, [-0.9, 0.1, 0.3]])
 BAKE_LIGHTS = np.array([[0.6, 0.5, 0.62], [-0.3, -0.7, 0.65]])
 
 
-def _params(diffuse=(0.0, 0.0, 0.0), lobes=(), sheen=(0.0, 0.0, 0.0), sigma=0.5):
-    """lobes: (distribution, color, grazing, alpha) tuples."""
-    return lobe_fit.LobeParams(
-        diffuse=np.array(diffuse, dtype=np.float64),
-        colors=np.array([lobe[1] for lobe in lobes], dtype=np.float64).reshape(-1, 3),
-        grazing=np.array([lobe[2] for lobe in lobes], dtype=np.float64),
-        alphas=np.array([lobe[3] for lobe in lobes], dtype=np.float64),
-        sheen=np.array(sheen, dtype=np.float64),
-        sheen_sigma=sigma,
-        distributions=tuple(lobe[0] for lobe in lobes),
-    )
+_params = lobe_fit.LobeParams.build
 
 
 # One material per closure, so a mismatch names its closure, then all together.

@@ -25,13 +25,7 @@ from brdf_reconstruct.operators import light, photos  # noqa: E402
 def tiny(tmp_path):
     built = BS.build(tmp_path)
     brdf_reconstruct.register()
-    s = built["scene"].brdf
-    s.target = built["scan"]
-    s.output_dir = str(tmp_path / "out")
-    # a 48-pixel photo: the sphere's normals turn ~0.06 rad per pixel, so the
-    # paper's 0.2 per 10 pixels (meant for multi-megapixel photos) would drop all
-    s.curvature_threshold = 1.5
-    s.samples, s.trials = 12, 2
+    BS.settings_for_tiny_runs(built, tmp_path / "out")
     try:
         yield built
     finally:
@@ -219,20 +213,31 @@ def test_worker_thread_run_matches_synchronous_run(tiny):
     assert b["regions"][0]["kl"] == kl_threaded  # same seed, same result
 
 
-def test_reconstruct_declares_undo_and_changes_only_blend_data(tiny):
-    """pip bpy has no window, so ed.undo cannot run here; what undo needs is checked:
-    the operator declares UNDO, and everything it changes is data-blocks or
-    scene properties (which Blender's global undo restores)."""
+def test_undo_after_reconstruct(tiny):
+    """Ctrl+Z after a run: Blender's global (memfile) undo restores the scene.
+
+    Headless, Blender keeps a window but pushes no undo step for operators called
+    from Python, so the test pushes the step the window manager pushes after an
+    operator with UNDO in its options (asserted here), then undoes and redoes."""
     assert "UNDO" in bpy.types.BRDF_OT_reconstruct.bl_options
     _add_photo(tiny)
+    window = bpy.context.window_manager.windows[0]
     blocks = ("materials", "images", "node_groups", "objects", "meshes", "lights", "scenes")
-    before = {k: set(getattr(bpy.data, k).keys()) for k in blocks}
-    bpy.ops.brdf.reconstruct()
-    added = {k: set(getattr(bpy.data, k).keys()) - before[k] for k in blocks}
-    removed = {k: before[k] - set(getattr(bpy.data, k).keys()) for k in blocks}
-    assert all(not v for v in removed.values())
-    assert added["objects"] == added["meshes"] == added["lights"] == added["scenes"] == set()
-    assert added["materials"] and added["node_groups"]
+    before = {k: sorted(getattr(bpy.data, k).keys()) for k in blocks}
+    with bpy.context.temp_override(window=window, screen=window.screen):
+        bpy.ops.ed.undo_push(message="before")
+        assert bpy.ops.brdf.reconstruct() == {"FINISHED"}
+        bpy.ops.ed.undo_push(message=bpy.types.BRDF_OT_reconstruct.bl_label)
+        after = {k: sorted(getattr(bpy.data, k).keys()) for k in blocks}
+        assert after["materials"] != before["materials"]
+        assert len(bpy.context.scene.brdf.results) == 1
+        assert bpy.ops.ed.undo() == {"FINISHED"}
+        assert {k: sorted(getattr(bpy.data, k).keys()) for k in blocks} == before
+        assert len(bpy.context.scene.brdf.results) == 0
+        assert len(bpy.context.scene.brdf.photos) == 1  # the user's list is kept
+        assert bpy.ops.ed.redo() == {"FINISHED"}
+        assert {k: sorted(getattr(bpy.data, k).keys()) for k in blocks} == after
+        assert bpy.context.scene.brdf.results[0].status == "ok"
 
 
 def test_output_folder_only_gets_new_files(tiny):
@@ -244,3 +249,16 @@ def test_output_folder_only_gets_new_files(tiny):
     bpy.ops.brdf.reconstruct()
     assert mine.read_text() == "the user's file"
     assert {"brdf_0.binary", "report.json"} <= set(os.listdir(out))
+
+
+def test_face_sets_are_regions(tiny):
+    _add_photo(tiny)
+    mesh = tiny["scan"].data
+    centres = np.zeros(len(mesh.polygons) * 3)
+    mesh.polygons.foreach_get("center", centres)
+    ids = np.where(centres.reshape(-1, 3)[:, 0] < 0, 4, 9).astype(np.int32)
+    mesh.attributes.new(".sculpt_face_set", "INT", "FACE").data.foreach_set("value", ids)
+    tiny["scene"].brdf.region_mode = "FACE_SET"
+    report = runner.ReconstructRun(tiny["scene"], threaded=False, bake=False).run()
+    assert [(r["region"], r["label"], r["status"]) for r in report["regions"]] == [
+        (4, "face set 4", "ok"), (9, "face set 9", "ok")]

@@ -25,17 +25,7 @@ def _pairs(n, seed=0):
     return l, v
 
 
-def _params(diffuse=(0.0, 0.0, 0.0), lobes=(), sheen=(0.0, 0.0, 0.0), sigma=0.5):
-    """lobes: (distribution, color, grazing, alpha) tuples."""
-    return lobe_fit.LobeParams(
-        diffuse=np.array(diffuse, dtype=np.float64),
-        colors=np.array([lobe[1] for lobe in lobes], dtype=np.float64).reshape(-1, 3),
-        grazing=np.array([lobe[2] for lobe in lobes], dtype=np.float64),
-        alphas=np.array([lobe[3] for lobe in lobes], dtype=np.float64),
-        sheen=np.array(sheen, dtype=np.float64),
-        sheen_sigma=sigma,
-        distributions=tuple(lobe[0] for lobe in lobes),
-    )
+_params = lobe_fit.LobeParams.build
 
 
 # A material of every kind of term the model has, for the round trips.

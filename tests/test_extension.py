@@ -164,6 +164,10 @@ CHILD = textwrap.dedent(
     out["pycolmap"] = [pycolmap.__version__, pycolmap.__file__]
     out["scipy"] = [scipy.__version__, scipy.__file__]
     out["dev_package_imported"] = "brdf_reconstruct" in sys.modules
+    import importlib
+    prefs = importlib.import_module(module + ".brdf_addon.prefs")
+    out["prefs_registered"] = type(prefs.get()).__name__
+    out["cache_dir"] = str(prefs.cache_dir())
     print("RESULT " + json.dumps(out))
     """
 )
@@ -224,6 +228,11 @@ def test_install_enable_and_run_operator(archive, colmap_model, tmp_path):
 
     assert out["import"] == ["FINISHED"], log
     assert out["cameras"] == ["left.jpg", "right.jpg"]
+    # preferences exist once installed, and the cache goes to the extension's user
+    # folder, never into the extension's own folder
+    assert out["prefs_registered"] == "BRDFPreferences"
+    cache = Path(out["cache_dir"]).resolve()
+    assert cache.is_relative_to(ext_dir.resolve()) and not cache.is_relative_to(installed)
 
     site_packages = ext_dir / ".local" / "lib" / "python3.11" / "site-packages"
     for name in ("pycolmap", "scipy"):
