@@ -9,7 +9,9 @@ assumptions keep the trustworthy samples, each stage switchable and counted:
    theta_h = 0. One pixel is fragile (noise, a hot pixel), so a sample's
    brightness is the *median* luminance of its 3 x 3 neighbourhood in its photo:
    a lone hot pixel has dim neighbours and cannot win. The corrected sample is
-   exempt from the later stages (its normal is now set by assumption).
+   exempt from the later stages (its normal is now set by assumption). Not
+   applied where the brightest sample's normal is far from h (see
+   ``ReliableSettings.peak_max_angle``): that maximum is not a specular peak.
 2. **Curvature.** Samples whose |H| exceeds a threshold (radians of normal turn
    per 10 pixels, see ``core.observations``), or whose H is undefined, go.
 3. **Monotonicity (Eq. 1, after Higo et al. 2010).** Within a region,
@@ -20,7 +22,9 @@ assumptions keep the trustworthy samples, each stage switchable and counted:
    Lambertian region has constant rho and is a flat isotonic fit, which its
    samples match to within their noise, so diffuse-dominated regions are not
    gutted (tested). What it removes are samples that are too bright or too dark
-   for their n.h, the signature of a wrong normal.
+   for their n.h, the signature of a wrong normal. Skipped in a region where it
+   would remove most samples (``monotonicity_max_fraction``): there the
+   reflectance itself is not monotone in n.h (sheen, retro-reflection).
 
 ``reliable_candidates`` runs the stages; ``reconstruct_trials`` then makes the
 paper's several reconstructions from random subsets (Sec. 3.2), each from
