@@ -205,8 +205,10 @@ class BRDF_PT_results(_BRDFPanel, Panel):
             row = box.row()
             row.label(text=bpy.path.basename(r.table_path), icon="FILE")
             row.operator("brdf.export", icon="EXPORT", text="").index = i
-            if r.plot is not None:
-                box.template_ID_preview(r, "plot", hide_buttons=True)
+            for name in ("slice_plot", "plot"):
+                if getattr(r, name) is not None:
+                    box.label(text=r.bl_rna.properties[name].name)
+                    box.template_ID_preview(r, name, hide_buttons=True)
 
 
 CLASSES = (BRDF_UL_photos, BRDF_PT_main, BRDF_PT_cameras, BRDF_PT_photos, BRDF_PT_light,

@@ -111,7 +111,11 @@ class BRDFRegionResult(PropertyGroup):
                               "table, under lights not used for fitting (-1 = not measured)")
     material: PointerProperty(name="Material", type=bpy.types.Material)
     table_path: StringProperty(name="Table", subtype="FILE_PATH", options=PATH)
-    plot: PointerProperty(name="Plot", type=bpy.types.Image)
+    plot: PointerProperty(name="Photo vs Render", type=bpy.types.Image,
+                          description="The photo and the chosen trial's render, same exposure")
+    slice_plot: PointerProperty(name="BRDF Slice", type=bpy.types.Image,
+                                description="The table at phi_d = 90 deg: theta_h across, "
+                                "theta_d down, log scale")
 
 
 def _apply_preset(self, _context):

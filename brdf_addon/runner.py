@@ -168,6 +168,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
                 picture = pictures.photo_vs_render(v.photo, render, v.mask)
             slice_pic = pictures.slice_image(r.table)
             pictures.write_png(out / f"brdf_{r.region}_slice.png", slice_pic)
+            entry.slice_plot = _as_image(f"BRDF {label} slice", slice_pic)
             summary["pictures"] = [f"brdf_{r.region}_slice.png"]
             if picture is not None:
                 pictures.write_png(out / f"brdf_{r.region}_photo_vs_render.png", picture)

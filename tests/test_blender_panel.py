@@ -168,6 +168,7 @@ def test_results(scene):
     ok.counts = json.dumps({"observed": 900, "removed": {"curvature": 100}, "reliable": 800})
     ok.material = bpy.data.materials.new("BRDF Scan")
     ok.plot = bpy.data.images.new("plot", 4, 4)
+    ok.slice_plot = bpy.data.images.new("slice", 4, 4)
     ok.table_path = "/tmp/brdf_0.binary"
     bad = scene.brdf.results.add()
     bad.label, bad.status, bad.reason = "slot 1", "skipped", "region 1: no photo sees it"
@@ -177,6 +178,7 @@ def test_results(scene):
     assert "Samples: 900 observed, -100 curvature, 800 reliable" in labels
     assert "region 1: no photo sees it" in labels
     assert ("template_ID_preview", "plot") in calls
+    assert ("template_ID_preview", "slice_plot") in calls
     assert ("operator", "brdf.export") in calls
 
 
