@@ -1,0 +1,261 @@
+"""Synthetic photogrammetry capture (issue 5, in progress): the geometry part.
+
+What exists:
+- :func:`load_ground_truth`: a mesh file as a new object, centred at the origin
+  and scaled to unit radius (the bunny or Spot from ../shared/data).
+- :func:`photogrammetry_mesh`: the "photogrammetry" copy of it, degraded as a
+  multi-view reconstruction is (the paper's Fig. 3c-d): decimated, smoothed so
+  edges and fine detail are blunted, with small seeded vertex noise. A NEW
+  object; the ground truth is untouched.
+- :func:`camera_ring`: camera poses on rings around the object (COLMAP
+  convention), and :func:`write_colmap` the COLMAP model of them, with the
+  ground truth's vertices as 3D points, written through pycolmap so that the
+  extension's real import path is used.
+- :func:`normal_angle_error`: the scan's normals against the ground truth's,
+  per pixel of a camera, from Cycles G-buffers of both.
+
+Still to come (issue 5): ambient multi-view renders, the lit photos shaded by
+the ground-truth table (a Cycles table shader), pycolmap SfM on the ambient
+images, and the demo/benchmark around them.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import pathlib
+
+import bpy
+import numpy as np
+
+# the ground-truth meshes: ../shared/data beside the repository, or $BRDF_SHARED_DATA
+DATA = pathlib.Path(os.environ.get(
+    "BRDF_SHARED_DATA", pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"))
+
+
+def load_ground_truth(path: str | pathlib.Path, name: str = "GroundTruth"):
+    """Import an .obj/.ply as one new mesh object at the origin with unit radius."""
+    path = pathlib.Path(path)
+    before = set(bpy.data.objects)
+    importer = {".obj": bpy.ops.wm.obj_import, ".ply": bpy.ops.wm.ply_import}[path.suffix]
+    importer(filepath=str(path))
+    new = [o for o in bpy.data.objects if o not in before and o.type == "MESH"]
+    if len(new) != 1:
+        raise ValueError(f"{path.name} holds {len(new)} meshes, not one")
+    obj = new[0]
+    obj.name = name
+    mesh = obj.data
+    co = np.zeros(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", co)
+    co = _world(obj, co.reshape(-1, 3))  # the importer may rotate (Y-up files)
+    centre = 0.5 * (co.min(axis=0) + co.max(axis=0))
+    co = (co - centre) / np.max(np.linalg.norm(co - centre, axis=1))
+    obj.matrix_world = _identity()
+    mesh.vertices.foreach_set("co", co.ravel())
+    mesh.update()
+    for polygon in mesh.polygons:
+        polygon.use_smooth = True
+    return obj
+
+
+def _identity():
+    from mathutils import Matrix
+
+    return Matrix.Identity(4)
+
+
+def _world(obj, co):
+    """(N, 3) object-space points -> world space."""
+    m = np.array(obj.matrix_world)
+    return co @ m[:3, :3].T + m[:3, 3]
+
+
+def photogrammetry_mesh(truth, *, decimate_ratio: float = 0.2, smooth_iterations: int = 8,
+                        smooth_factor: float = 0.5, noise: float = 0.002, seed: int = 0,
+                        name: str = "Scan"):
+    """A degraded copy of ``truth`` (a new object with a new mesh).
+
+    decimate_ratio: share of faces kept (collapse). smooth_iterations,
+    smooth_factor: Laplacian-like vertex smoothing that blunts edges and fine
+    detail. noise: standard deviation of the vertex displacement along the
+    normal, in units of the object's radius (1). Seeded.
+    """
+    obj = truth.copy()
+    obj.data = truth.data.copy()
+    obj.name = obj.data.name = name
+    bpy.context.scene.collection.objects.link(obj)
+    decimate = obj.modifiers.new("decimate", "DECIMATE")
+    decimate.ratio = decimate_ratio
+    smooth = obj.modifiers.new("smooth", "SMOOTH")
+    smooth.iterations = smooth_iterations
+    smooth.factor = smooth_factor
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    evaluated = obj.evaluated_get(depsgraph)
+    baked = bpy.data.meshes.new_from_object(evaluated)
+    old = obj.data
+    obj.modifiers.clear()
+    obj.data = baked
+    bpy.data.meshes.remove(old)
+    baked.name = name
+    n = len(baked.vertices)
+    co = np.zeros(n * 3)
+    normal = np.zeros(n * 3)
+    baked.vertices.foreach_get("co", co)
+    baked.vertices.foreach_get("normal", normal)
+    shift = np.random.default_rng(seed).normal(0.0, noise, n)[:, None]
+    baked.vertices.foreach_set("co", (co.reshape(-1, 3) + shift * normal.reshape(-1, 3)).ravel())
+    baked.update()
+    for polygon in baked.polygons:
+        polygon.use_smooth = True
+    return obj
+
+
+def camera_ring(n_views: int, distance: float = 3.5,
+                elevations_deg=(-10.0, 20.0, 50.0)) -> list[tuple[np.ndarray, np.ndarray]]:
+    """COLMAP poses (R_cam_from_world, t) of ``n_views`` cameras spread over rings at
+    the given elevations, all looking at the origin from ``distance``."""
+    from brdf_reconstruct.core import colmap
+
+    poses = []
+    rings = len(elevations_deg)
+    for i in range(n_views):
+        ring = i % rings
+        k = i // rings
+        per_ring = math.ceil(n_views / rings)
+        azimuth = 2 * math.pi * (k + 0.5 * ring) / per_ring
+        el = math.radians(elevations_deg[ring])
+        centre = distance * np.array([math.cos(el) * math.cos(azimuth),
+                                      math.cos(el) * math.sin(azimuth), math.sin(el)])
+        poses.append(colmap.look_at(centre, [0.0, 0.0, 0.0]))
+    return poses
+
+
+def write_colmap(folder: str | pathlib.Path, poses, width: int, height: int,
+                 focal_px: float, points) -> pathlib.Path:
+    """Write a binary COLMAP model (PINHOLE cameras, images view000.png ...) of the
+    poses, with ``points`` (N, 3) as the sparse 3D points; returns the folder."""
+    from brdf_reconstruct.core import colmap
+
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    views = [(f"view{i:03d}.png", "PINHOLE", [focal_px, focal_px, width / 2, height / 2],
+              width, height, R, t) for i, (R, t) in enumerate(poses)]
+    colmap.synthetic_reconstruction(views, points).write(str(folder))
+    return folder
+
+
+def normal_angle_error(truth, scan, camera, resolution) -> np.ndarray:
+    """Angles (radians) between the scan's and the ground truth's rendered normals,
+    at the pixels both cover, seen by ``camera`` (Cycles G-buffers)."""
+    from brdf_reconstruct.brdf_addon import gbuffer
+
+    light = np.array([0.0, 0.0, 1.0])
+    a = gbuffer.render_gbuffers(truth, camera, light, resolution=resolution)
+    b = gbuffer.render_gbuffers(scan, camera, light, resolution=resolution)
+    both = a.mask & b.mask
+    cos = np.clip(np.sum(a.normal[both] * b.normal[both], axis=-1), -1.0, 1.0)
+    return np.arccos(cos)
+
+
+def render_lit_photos(truth, cameras, table, light, folder, resolution, irradiance=1.0,
+                      samples: int = 16) -> list[pathlib.Path]:
+    """Linear EXR photos of ``truth`` shaded by the ground-truth ``table`` (not an
+    approximation: ``brdf_addon.table_shader``) under one distant light, one per
+    camera, direct light only. A temporary scene; the user's scene is unchanged."""
+    from brdf_reconstruct.brdf_addon import table_shader
+
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    light = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
+    images_before = set(bpy.data.images)
+    scene = bpy.data.scenes.new("capture")
+    made = []  # (collection, data-block), removed afterwards
+    try:
+        obj = truth.copy()
+        obj.data = truth.data.copy()
+        made += [(bpy.data.objects, obj), (bpy.data.meshes, obj.data)]
+        material = table_shader.table_material("ground truth", table, light)
+        made.append((bpy.data.materials, material))
+        obj.data.materials.clear()
+        obj.data.materials.append(material)
+        scene.collection.objects.link(obj)
+        sun_data = bpy.data.lights.new("capture sun", "SUN")
+        sun_data.energy, sun_data.angle = float(irradiance), 0.0
+        sun = bpy.data.objects.new("capture sun", sun_data)
+        made += [(bpy.data.objects, sun), (bpy.data.lights, sun_data)]
+        from mathutils import Vector
+
+        sun.rotation_mode = "QUATERNION"
+        sun.rotation_quaternion = Vector((0, 0, 1)).rotation_difference(Vector(tuple(light)))
+        scene.collection.objects.link(sun)
+        r = scene.render
+        r.engine = "CYCLES"
+        r.resolution_x, r.resolution_y = resolution
+        r.resolution_percentage = 100
+        r.film_transparent = True
+        scene.cycles.samples = samples
+        scene.cycles.use_denoising = False
+        scene.cycles.max_bounces = 0
+        scene.cycles.device = "CPU"
+        scene.view_settings.view_transform = "Standard"
+        r.image_settings.file_format = "OPEN_EXR"
+        r.image_settings.color_depth = "32"
+        paths = []
+        for cam in cameras:
+            scene.collection.objects.link(cam)
+            scene.camera = cam
+            path = folder / (pathlib.Path(cam["brdf_image_name"]).stem + ".exr")
+            r.filepath = str(path)
+            bpy.ops.render.render(write_still=True, scene=scene.name)
+            scene.collection.objects.unlink(cam)
+            paths.append(path)
+        return paths
+    finally:
+        bpy.data.scenes.remove(scene)
+        for collection, block in reversed(made):
+            try:
+                collection.remove(block)
+            except ReferenceError:  # gone with the scene
+                pass
+        for image in set(bpy.data.images) - images_before:
+            bpy.data.images.remove(image)
+
+
+def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
+             light=(0.35, -0.45, 0.82), resolution=(160, 120), focal_px: float = 200.0,
+             seed: int = 0, scan_options: dict | None = None) -> pathlib.Path:
+    """A whole synthetic capture in ``folder``: ``scan.ply`` (the degraded mesh),
+    ``sparse/0`` (COLMAP model of every camera), ``lit/*.exr`` (photos of the
+    ground truth shaded by ``table`` from the ``lit_views`` cameras under one
+    distant light), ``truth.binary`` and ``job.toml`` for the batch entry.
+    Resets Blender to an empty scene. Returns the job file's path."""
+    from brdf_reconstruct.core import merl
+    from brdf_reconstruct.operators import import_colmap
+
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    truth = load_ground_truth(mesh or DATA / "stanford-bunny.obj")
+    scan = photogrammetry_mesh(truth, seed=seed, **(scan_options or {}))
+    poses = camera_ring(n_views)
+    co = np.zeros(len(truth.data.vertices) * 3)
+    truth.data.vertices.foreach_get("co", co)
+    sparse = write_colmap(folder / "sparse" / "0", poses, *resolution, focal_px,
+                          co.reshape(-1, 3)[:: max(1, len(co) // 3 // 2000)])
+    cameras = import_colmap.import_cameras(bpy.context.scene, sparse)
+    photos = render_lit_photos(truth, [cameras[i] for i in lit_views], table, light,
+                               folder / "lit", resolution)
+    bpy.ops.object.select_all(action="DESELECT")
+    scan.select_set(True)
+    bpy.context.view_layer.objects.active = scan
+    bpy.ops.wm.ply_export(filepath=str(folder / "scan.ply"), export_selected_objects=True,
+                          export_normals=True, apply_modifiers=True)
+    merl.write(folder / "truth.binary", table)
+    lines = ['mesh = "scan.ply"', 'colmap = "sparse/0"', 'out = "out"', "",
+             "[settings]", f"seed = {seed}", ""]
+    for path in photos:
+        lines += ["[[photo]]", f'image = "lit/{path.name}"',
+                  f'camera = "{path.stem}.png"', f"light = {list(map(float, light))}", ""]
+    job = folder / "job.toml"
+    job.write_text("\n".join(lines))
+    return job
