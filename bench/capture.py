@@ -222,13 +222,14 @@ def render_lit_photos(truth, cameras, table, light, folder, resolution, irradian
 
 
 def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
-             light=(0.35, -0.45, 0.82), resolution=(160, 120), focal_px: float = 200.0,
+             light=(0.35, -0.45, 0.82), resolution=(160, 120), focal_px: float | None = None,
              seed: int = 0, scan_options: dict | None = None) -> pathlib.Path:
     """A whole synthetic capture in ``folder``: ``scan.ply`` (the degraded mesh),
     ``sparse/0`` (COLMAP model of every camera), ``lit/*.exr`` (photos of the
     ground truth shaded by ``table`` from the ``lit_views`` cameras under one
     distant light), ``truth.binary`` and ``job.toml`` for the batch entry.
-    Resets Blender to an empty scene. Returns the job file's path."""
+    focal_px: default 1.25 x the width, so the object fills the frame alike at
+    any resolution. Resets Blender to an empty scene. Returns the job file's path."""
     from brdf_reconstruct.core import merl
     from brdf_reconstruct.operators import import_colmap
 
@@ -240,6 +241,7 @@ def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
     poses = camera_ring(n_views)
     co = np.zeros(len(truth.data.vertices) * 3)
     truth.data.vertices.foreach_get("co", co)
+    focal_px = 1.25 * resolution[0] if focal_px is None else focal_px
     sparse = write_colmap(folder / "sparse" / "0", poses, *resolution, focal_px,
                           co.reshape(-1, 3)[:: max(1, len(co) // 3 // 2000)])
     cameras = import_colmap.import_cameras(bpy.context.scene, sparse)
@@ -259,3 +261,35 @@ def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
     job = folder / "job.toml"
     job.write_text("\n".join(lines))
     return job
+
+
+def main(argv=None) -> int:
+    """``python bench/capture.py OUT --material NAME ...``: write a capture to OUT."""
+    import argparse
+    import sys
+
+    from brdf_reconstruct.core import database
+
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument("out")
+    parser.add_argument("--material", default="heldout_gold_medium")
+    parser.add_argument("--views", type=int, default=6)
+    parser.add_argument("--lit", type=int, default=3)
+    parser.add_argument("--width", type=int, default=240)
+    parser.add_argument("--height", type=int, default=180)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    specs = {s["name"]: s for s in database.heldout_specs()}
+    if args.material not in specs:
+        print(f"error: unknown material {args.material!r}", file=sys.stderr)
+        return 2
+    step = max(1, args.views // args.lit)
+    job = generate(args.out, database.make_table(specs[args.material]), n_views=args.views,
+                   lit_views=tuple(range(0, args.views, step))[: args.lit],
+                   resolution=(args.width, args.height), seed=args.seed)
+    print(f"wrote {job}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
