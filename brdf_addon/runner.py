@@ -173,6 +173,14 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
             if picture is not None:
                 pictures.write_png(out / f"brdf_{r.region}_photo_vs_render.png", picture)
                 summary["pictures"].append(f"brdf_{r.region}_photo_vs_render.png")
+            if views and r.reliable_pixels is not None:
+                first = int(r.observed_pixels[0, 0])  # the first photo seeing the region
+                overlay = pictures.reliable_overlay(
+                    inputs[first].photo, r.observed_pixels[r.observed_pixels[:, 0] == first, 1:],
+                    r.reliable_pixels[r.reliable_pixels[:, 0] == first, 1:])
+                name = f"brdf_{r.region}_reliable_region.png"
+                pictures.write_png(out / name, overlay)
+                summary["pictures"].append(name)
                 entry.plot = _as_image(f"BRDF {label} photo vs render", picture)
             summary["table"] = table_path.name
             timings[f"outputs_region_{r.region}"] = time.perf_counter() - t0

@@ -3,6 +3,7 @@
 - :func:`slice_image`: the table's (theta_h, theta_d) slice at phi_d = 90 deg,
   the standard view of a MERL table, log-scaled.
 - :func:`photo_vs_render`: photo and render side by side, same exposure.
+- :func:`reliable_overlay`: which pixels the reliable region kept, over a photo.
 
 Images are (H, W, 3) float32 display values in [0, 1] (sRGB-encoded), row 0
 at the top; :func:`write_png` saves one with OpenImageIO.
@@ -58,6 +59,22 @@ def photo_vs_render(photo: np.ndarray, render: np.ndarray, mask: np.ndarray,
     out[:, :w] = srgb_encode(np.where(mask[..., None], photo, 0.0) / white)
     out[:, w + gap:] = srgb_encode(np.where(mask[..., None], render, 0.0) / white)
     return out
+
+
+def reliable_overlay(photo: np.ndarray, observed_rc: np.ndarray,
+                     reliable_rc: np.ndarray) -> np.ndarray:
+    """(H, W, 3) sRGB picture of the reliable region over a photo: the photo in
+    grey, observed pixels the stages dropped in red, reliable pixels in green.
+    observed_rc, reliable_rc: (N, 2) int (row, column)."""
+    photo = np.nan_to_num(np.asarray(photo, dtype=np.float64), nan=0.0, posinf=0.0)
+    grey = photo.mean(axis=-1)
+    white = max(float(np.percentile(grey[grey > 0], 99)) if np.any(grey > 0) else 1.0, 1e-12)
+    base = srgb_encode(grey / white)
+    out = np.repeat(0.6 * base[..., None], 3, axis=-1)
+    for rc, colour in ((observed_rc, (0.9, 0.15, 0.1)), (reliable_rc, (0.1, 0.85, 0.2))):
+        rc = np.asarray(rc, dtype=np.int64).reshape(-1, 2)
+        out[rc[:, 0], rc[:, 1]] = 0.4 * base[rc[:, 0], rc[:, 1], None] + 0.6 * np.array(colour)
+    return out.astype(np.float32)
 
 
 def write_png(path: str | os.PathLike, image: np.ndarray) -> None:

@@ -99,6 +99,8 @@ class RegionResult:
     candidates: every trial's table as float32, for the Cycles selection path.
     kl: (T,) KL score per trial, nats; winner: index of the chosen trial.
     trials: per-trial summaries (condition number, samples used, eta).
+    observed_pixels, reliable_pixels: (N, 3) int64 (view, row, column) of the
+    region's samples before and after the reliable-region stages (for pictures).
     """
 
     region: int
@@ -111,6 +113,8 @@ class RegionResult:
     kl: np.ndarray | None = None
     winner: int = -1
     trials: list = dataclasses.field(default_factory=list)
+    observed_pixels: np.ndarray | None = None
+    reliable_pixels: np.ndarray | None = None
     selection: dict = dataclasses.field(default_factory=lambda: {"path": "fast"})
 
     def summary(self) -> dict:
@@ -192,12 +196,14 @@ def run_region(
     if len(sel) == 0:
         result.reason = f"region {region}: no photo sees it with usable pixels"
         return result
+    result.observed_pixels = np.column_stack([samples.view[sel], samples.pixel[sel]])
     try:
         cand, report = reliable.reliable_candidates(samples.subset(sel), settings.reliable)
     except ValueError as error:
         result.reason = f"region {region}: {error}"
         return result
     result.counts.update(removed=report.removed, reliable=report.kept)
+    result.reliable_pixels = np.column_stack([cand.view, cand.pixel])
     result.skipped_assumptions = report.skipped
     if report.kept < settings.min_reliable_samples:
         result.reason = (f"region {region}: only {report.kept} reliable samples "

@@ -155,6 +155,7 @@ def test_reconstruct_makes_material_table_and_report(tiny):
     report = json.loads((tiny["dir"] / "out" / "report.json").read_text())
     assert report["regions"][0]["kl"] and report["regions"][0]["status"] == "ok"
     assert (tiny["dir"] / "out" / "brdf_0_slice.png").is_file()
+    assert (tiny["dir"] / "out" / "brdf_0_reliable_region.png").is_file()
     assert tuple(r.slice_plot.size) == (270, 270) and r.plot.size[1] == BS.SIZE
     assert _digest(tiny["photo"]) == user_photo  # the photo was only read
     known = bpy.data.materials["Known Lambert"]

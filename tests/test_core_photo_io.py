@@ -77,3 +77,12 @@ def test_photo_vs_render_round_trip_png(tmp_path):
     pictures.write_png(tmp_path / "p.png", pic)
     back = photo_io.read_photo(tmp_path / "p.png", linear=True)
     np.testing.assert_allclose(back, pic, atol=0.5 / 255 + 1e-6)
+
+
+def test_reliable_overlay_colours_kept_and_dropped_pixels():
+    photo = np.full((4, 5, 3), 0.5)
+    pic = pictures.reliable_overlay(photo, np.array([[1, 1], [2, 3]]), np.array([[1, 1]]))
+    assert pic.shape == (4, 5, 3) and np.all(np.isfinite(pic))
+    assert pic[1, 1, 1] > pic[1, 1, 0]  # kept: green
+    assert pic[2, 3, 0] > pic[2, 3, 1]  # dropped: red
+    assert pic[0, 0, 0] == pic[0, 0, 1] == pic[0, 0, 2]  # not observed: grey

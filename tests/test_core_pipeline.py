@@ -115,3 +115,13 @@ def test_lambert_scene_database_table_is_finite(default_basis):
     table = database.make_table(database.heldout_specs()[8])  # Lambert grey
     result = pipeline.run(default_basis, _inputs([table], regions_split=False), FAST)
     assert np.all(np.isfinite(result.regions[0].table))
+
+
+def test_reliable_pixels_are_a_subset_of_the_observed_ones(default_basis, two_materials):
+    result = pipeline.run(default_basis, _inputs(two_materials), FAST, regions=[1])
+    r = result.regions[0]
+    assert len(r.observed_pixels) == r.counts["observed"]
+    assert len(r.reliable_pixels) == r.counts["reliable"]
+    observed = {tuple(p) for p in r.observed_pixels}
+    assert all(tuple(p) in observed for p in r.reliable_pixels)
+    assert np.all(r.observed_pixels[:, 2] >= RES // 2)  # region 1 is the right half
