@@ -162,61 +162,22 @@ def render_lit_photos(truth, cameras, table, light, folder, resolution, irradian
     """Linear EXR photos of ``truth`` shaded by the ground-truth ``table`` (not an
     approximation: ``brdf_addon.table_shader``) under one distant light, one per
     camera, direct light only. A temporary scene; the user's scene is unchanged."""
-    from brdf_reconstruct.brdf_addon import table_shader
+    from brdf_reconstruct.brdf_addon import cycles_select, table_shader
 
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     light = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
     images_before = set(bpy.data.images)
-    scene = bpy.data.scenes.new("capture")
-    made = []  # (collection, data-block), removed afterwards
+    material = table_shader.table_material("ground truth", table, light)
     try:
-        obj = truth.copy()
-        obj.data = truth.data.copy()
-        made += [(bpy.data.objects, obj), (bpy.data.meshes, obj.data)]
-        material = table_shader.table_material("ground truth", table, light)
-        made.append((bpy.data.materials, material))
-        obj.data.materials.clear()
-        obj.data.materials.append(material)
-        scene.collection.objects.link(obj)
-        sun_data = bpy.data.lights.new("capture sun", "SUN")
-        sun_data.energy, sun_data.angle = float(irradiance), 0.0
-        sun = bpy.data.objects.new("capture sun", sun_data)
-        made += [(bpy.data.objects, sun), (bpy.data.lights, sun_data)]
-        from mathutils import Vector
-
-        sun.rotation_mode = "QUATERNION"
-        sun.rotation_quaternion = Vector((0, 0, 1)).rotation_difference(Vector(tuple(light)))
-        scene.collection.objects.link(sun)
-        r = scene.render
-        r.engine = "CYCLES"
-        r.resolution_x, r.resolution_y = resolution
-        r.resolution_percentage = 100
-        r.film_transparent = True
-        scene.cycles.samples = samples
-        scene.cycles.use_denoising = False
-        scene.cycles.max_bounces = 0
-        scene.cycles.device = "CPU"
-        scene.view_settings.view_transform = "Standard"
-        r.image_settings.file_format = "OPEN_EXR"
-        r.image_settings.color_depth = "32"
-        paths = []
-        for cam in cameras:
-            scene.collection.objects.link(cam)
-            scene.camera = cam
-            path = folder / (pathlib.Path(cam["brdf_image_name"]).stem + ".exr")
-            r.filepath = str(path)
-            bpy.ops.render.render(write_still=True, scene=scene.name)
-            scene.collection.objects.unlink(cam)
-            paths.append(path)
+        paths = [folder / (pathlib.Path(cam["brdf_image_name"]).stem + ".exr")
+                 for cam in cameras]
+        for cam, path in zip(cameras, paths, strict=True):
+            cycles_select.render_candidate(truth, material, cam, light, irradiance,
+                                           resolution, samples, path=path)
         return paths
     finally:
-        bpy.data.scenes.remove(scene)
-        for collection, block in reversed(made):
-            try:
-                collection.remove(block)
-            except ReferenceError:  # gone with the scene
-                pass
+        bpy.data.materials.remove(material)
         for image in set(bpy.data.images) - images_before:
             bpy.data.images.remove(image)
 

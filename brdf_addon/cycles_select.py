@@ -29,10 +29,11 @@ _NAME = "BRDF_KL"
 
 
 def render_candidate(obj, material, camera, light, irradiance, resolution, samples: int,
-                     bounces: int = 0, device: str = "CPU") -> np.ndarray:
+                     bounces: int = 0, device: str = "CPU", path=None) -> np.ndarray:
     """(H, W, 3) linear radiance: Cycles render of ``obj`` with ``material`` on every
     slot, seen by ``camera``, under a distant light (world direction ``light``,
-    irradiance scalar or RGB W/m^2). Temporary data only."""
+    irradiance scalar or RGB W/m^2). Temporary data only; ``path``: also keep the
+    render there as a float EXR."""
     width, height = resolution
     irradiance = np.broadcast_to(np.asarray(irradiance, dtype=np.float64), (3,))
     scene = bpy.data.scenes.new(_NAME)
@@ -76,7 +77,7 @@ def render_candidate(obj, material, camera, light, irradiance, resolution, sampl
         scene.view_settings.view_transform = "Standard"
         r.image_settings.file_format = "OPEN_EXR"
         r.image_settings.color_depth = "32"
-        path = os.path.join(tmp, "kl.exr")
+        path = os.fspath(path) if path is not None else os.path.join(tmp, "kl.exr")
         r.filepath = path
         with bpy.context.temp_override(scene=scene):
             bpy.ops.render.render(write_still=True, scene=scene.name)

@@ -69,22 +69,12 @@ def check_scene(scene) -> None:
             raise ValueError(f"photo {photo.name} has no camera")
 
 
-def gather(scene, progress=None, cancelled=None) -> list[pipeline.PhotoInput]:
-    """Photos, lights and Cycles G-buffers for every photo of ``scene.brdf``.
-
-    progress(fraction, message) and cancelled() as in ``core.pipeline.run``.
-    Raises ValueError (one sentence) for a bad scene and ``pipeline.Cancelled``.
-    """
+def gather(scene) -> list[pipeline.PhotoInput]:
+    """Photos, lights and Cycles G-buffers for every photo of ``scene.brdf`` at once
+    (:class:`ReconstructRun` does the same one photo per step). Raises
+    ValueError (one sentence) for a bad scene."""
     check_scene(scene)
-    inputs = []
-    photos = scene.brdf.photos
-    for i, photo in enumerate(photos):
-        if cancelled is not None and cancelled():
-            raise pipeline.Cancelled("cancelled by the user")
-        if progress:
-            progress(i / len(photos), f"G-buffers of {photo.name}")
-        inputs.append(gather_photo(scene, photo))
-    return inputs
+    return [gather_photo(scene, photo) for photo in scene.brdf.photos]
 
 
 def gather_photo(scene, photo) -> pipeline.PhotoInput:
@@ -282,7 +272,7 @@ class ReconstructRun:
     def _science(self) -> None:
         try:
             t0 = time.perf_counter()
-            basis = prefs_basis()
+            basis = prefs.load_basis()
             self._timings["basis_load"] = time.perf_counter() - t0
 
             def progress(f, msg):
@@ -383,9 +373,4 @@ class ReconstructRun:
         while not self.step():
             pass
         return self.report
-
-
-def prefs_basis():
-    """The basis from the preferences (a seam for tests)."""
-    return prefs.load_basis()
 
