@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import merl
+from . import merl, render
 
 
 def brdf_log_rmse(estimate: np.ndarray, reference: np.ndarray) -> float:
@@ -31,3 +31,32 @@ def relative_rmse(estimate: np.ndarray, reference: np.ndarray) -> float:
     if denom == 0.0:
         return float(np.sqrt(np.sum(est**2)))
     return float(np.sqrt(np.sum((est - ref) ** 2)) / denom)
+
+
+def _sphere_light(angle_deg: float, azimuth_deg: float) -> np.ndarray:
+    a, b = np.radians(angle_deg), np.radians(azimuth_deg)
+    return np.array([np.sin(a) * np.cos(b), np.sin(a) * np.sin(b), np.cos(a)])
+
+
+# Evaluation lights for the rendered-sphere error, camera space (+z to the viewer):
+# 20, 60 and 100 degrees between light and view, at different azimuths. They are
+# not the lights the photos were taken under (those are world directions of a
+# capture, seen from several cameras).
+SPHERE_LIGHTS = np.array([_sphere_light(20.0, 30.0), _sphere_light(60.0, 150.0),
+                          _sphere_light(100.0, 270.0)])
+
+
+def sphere_error(estimate: np.ndarray, reference: np.ndarray, lights=SPHERE_LIGHTS,
+                 resolution: int = 96) -> float:
+    """Rendered-sphere relative RMSE of a table against the truth, under ``lights``.
+
+    estimate, reference: (3, 90, 90, 180) tables in 1/sr. lights: (K, 3) camera-
+    space directions towards the light (default :data:`SPHERE_LIGHTS`). Both
+    tables are rendered on a ``resolution``-pixel sphere (``render.render_sphere``,
+    irradiance 1) under every light; returns :func:`relative_rmse` of the K
+    images stacked, dimensionless (0 = identical).
+    """
+    lights = np.atleast_2d(np.asarray(lights, dtype=np.float64))
+    est = np.stack([render.render_sphere(estimate, light, resolution) for light in lights])
+    ref = np.stack([render.render_sphere(reference, light, resolution) for light in lights])
+    return relative_rmse(est, ref)

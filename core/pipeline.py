@@ -101,6 +101,8 @@ class RegionResult:
     trials: per-trial summaries (condition number, samples used, eta).
     observed_pixels, reliable_pixels: (N, 3) int64 (view, row, column) of the
     region's samples before and after the reliable-region stages (for pictures).
+    timings: wall seconds per stage of this region: ``reliable``, ``sampling``
+    (condition-optimal cell choice), ``reconstruction``, ``selection`` (KL).
     """
 
     region: int
@@ -116,6 +118,7 @@ class RegionResult:
     observed_pixels: np.ndarray | None = None
     reliable_pixels: np.ndarray | None = None
     selection: dict = dataclasses.field(default_factory=lambda: {"path": "fast"})
+    timings: dict = dataclasses.field(default_factory=dict)
 
     def summary(self) -> dict:
         """JSON-friendly summary (no arrays) for ``report.json``."""
@@ -124,7 +127,7 @@ class RegionResult:
             "counts": self.counts, "skipped_assumptions": self.skipped_assumptions,
             "winner": int(self.winner),
             "kl": None if self.kl is None else [float(k) for k in self.kl],
-            "trials": self.trials, "selection": self.selection,
+            "trials": self.trials, "selection": self.selection, "timings_s": self.timings,
         }
 
 
@@ -197,11 +200,14 @@ def run_region(
         result.reason = f"region {region}: no photo sees it with usable pixels"
         return result
     result.observed_pixels = np.column_stack([samples.view[sel], samples.pixel[sel]])
+    t0 = time.perf_counter()
     try:
         cand, report = reliable.reliable_candidates(samples.subset(sel), settings.reliable)
     except ValueError as error:
         result.reason = f"region {region}: {error}"
         return result
+    finally:
+        result.timings["reliable"] = time.perf_counter() - t0
     result.counts.update(removed=report.removed, reliable=report.kept)
     result.reliable_pixels = np.column_stack([cand.view, cand.pixel])
     result.skipped_assumptions = report.skipped
@@ -215,12 +221,15 @@ def run_region(
         if progress:
             progress(t / settings.n_trials, f"region {region}: trial {t + 1}/{settings.n_trials}")
         trials += reliable.reconstruct_trials(basis, cand, settings.n_samples, 1, child,
-                                              settings.subset_fraction, report.peaks)
+                                              settings.subset_fraction, report.peaks,
+                                              timings=result.timings)
     _check(cancelled)
     if progress:
         progress(1.0, f"region {region}: KL selection over {len(trials)} trials")
+    t0 = time.perf_counter()
     chosen = selection.select_by_kl([rec.table for rec, _ in trials],
                                     region_views(inputs, region), n_bins=settings.kl_bins)
+    result.timings["selection"] = time.perf_counter() - t0
     result.status = "ok"
     result.kl = chosen.kl
     result.winner = int(chosen.winner)
@@ -275,6 +284,9 @@ def run(
         results.append(run_region(basis, samples, inputs, int(region), settings, child,
                                   stage_progress(lo, lo + 0.9 / len(regions)), cancelled))
     timings["reliable_trials_selection"] = time.perf_counter() - t0
+    for r in results:
+        for stage, seconds in r.timings.items():
+            timings[stage] = timings.get(stage, 0.0) + seconds
     if not any(r.status == "ok" for r in results):
         raise ValueError("no reliable pixels in any region: "
                          + "; ".join(r.reason for r in results))
