@@ -14,9 +14,11 @@ What exists:
 - :func:`normal_angle_error`: the scan's normals against the ground truth's,
   per pixel of a camera, from Cycles G-buffers of both.
 
-Still to come (issue 5): ambient multi-view renders, the lit photos shaded by
-the ground-truth table (a Cycles table shader), pycolmap SfM on the ambient
-images, and the demo/benchmark around them.
+- :func:`render_lit_photos`: the lit photos, shaded by the ground-truth table
+  itself (the Cycles table shader, ``brdf_addon.table_shader``).
+- :func:`generate`: all of it as files a user would have, with a job file.
+
+The ambient multi-view images and pycolmap's SfM on them are in ``bench/sfm.py``.
 """
 
 from __future__ import annotations
@@ -54,6 +56,37 @@ def load_ground_truth(path: str | pathlib.Path, name: str = "GroundTruth"):
     mesh.vertices.foreach_set("co", co.ravel())
     mesh.update()
     for polygon in mesh.polygons:
+        polygon.use_smooth = True
+    return obj
+
+
+def default_ground_truth(name: str = "GroundTruth"):
+    """The Stanford bunny from :data:`DATA` if it is there; otherwise Blender's
+    Suzanne, subdivided twice and smoothed (about 8k faces; concave, self-
+    shadowing), so that a machine without ../shared/data still runs a capture."""
+    bunny = DATA / "stanford-bunny.obj"
+    if bunny.is_file():
+        return load_ground_truth(bunny, name)
+    _say(f"{bunny} not found: using Blender's Suzanne as the ground truth")
+    bpy.ops.mesh.primitive_monkey_add()
+    obj = bpy.context.active_object
+    subsurf = obj.modifiers.new("subdivide", "SUBSURF")
+    subsurf.levels = subsurf.render_levels = 2
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    baked = bpy.data.meshes.new_from_object(obj.evaluated_get(depsgraph))
+    old = obj.data
+    obj.modifiers.clear()
+    obj.data = baked
+    bpy.data.meshes.remove(old)
+    obj.name = name
+    co = np.zeros(len(baked.vertices) * 3)
+    baked.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    centre = 0.5 * (co.min(axis=0) + co.max(axis=0))
+    baked.vertices.foreach_set("co", ((co - centre) / np.max(np.linalg.norm(
+        co - centre, axis=1))).ravel())
+    baked.update()
+    for polygon in baked.polygons:
         polygon.use_smooth = True
     return obj
 
@@ -172,7 +205,8 @@ def render_lit_photos(truth, cameras, table, light, folder, resolution, irradian
     try:
         paths = [folder / (pathlib.Path(cam["brdf_image_name"]).stem + ".exr")
                  for cam in cameras]
-        for cam, path in zip(cameras, paths, strict=True):
+        for i, (cam, path) in enumerate(zip(cameras, paths, strict=True)):
+            _say(f"photo {i + 1}/{len(paths)}: {path.name}")
             cycles_select.render_candidate(truth, material, cam, light, irradiance,
                                            resolution, samples, path=path)
         return paths
@@ -197,7 +231,8 @@ def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    truth = load_ground_truth(mesh or DATA / "stanford-bunny.obj")
+    _say("loading the ground-truth mesh and degrading it into the scan")
+    truth = load_ground_truth(mesh) if mesh else default_ground_truth()
     scan = photogrammetry_mesh(truth, seed=seed, **(scan_options or {}))
     poses = camera_ring(n_views)
     co = np.zeros(len(truth.data.vertices) * 3)
@@ -206,6 +241,7 @@ def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
     sparse = write_colmap(folder / "sparse" / "0", poses, *resolution, focal_px,
                           co.reshape(-1, 3)[:: max(1, len(co) // 3 // 2000)])
     cameras = import_colmap.import_cameras(bpy.context.scene, sparse)
+    _say(f"rendering {len(lit_views)} lit photos with the true table (Cycles)")
     photos = render_lit_photos(truth, [cameras[i] for i in lit_views], table, light,
                                folder / "lit", resolution)
     bpy.ops.object.select_all(action="DESELECT")
@@ -222,6 +258,11 @@ def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
     job = folder / "job.toml"
     job.write_text("\n".join(lines))
     return job
+
+
+def _say(message: str) -> None:
+    """A progress line (``capture: ...``) that callers such as ``make demo`` show."""
+    print(f"capture: {message}", flush=True)
 
 
 def main(argv=None) -> int:

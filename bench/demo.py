@@ -1,80 +1,162 @@
-"""``make demo``: reconstruct a held-out material from optimally chosen samples.
+"""``make demo``: the photo-to-material job on a synthetic bunny capture.
 
-For now the demo exercises the core on a built-in example: a material the basis
-never saw (a held-out analytic BRDF) is observed at n condition-optimal cells,
-the full table is reconstructed, the errors are printed, and a picture (BRDF
-slices at an incident angle of 135 degrees as in the paper's Fig. 4, plus
-rendered spheres) and the MERL ``.binary`` are written to ``demo_out/``.
-Later work replaces this with the full photo-to-material pipeline.
+1. Loads (or, on a fresh machine, builds and caches, about 2 min) the built-in
+   PCA basis of measured-style BRDFs.
+2. Generates, or reuses from the cache, a capture (``bench/capture.py``): the
+   Stanford bunny degraded as a photogrammetry mesh (decimated, blunted,
+   noisy), a COLMAP model of a camera ring, and linear EXR photos under one
+   distant light shaded in Cycles by a held-out material's true table (the
+   basis never saw it).
+3. Runs the batch job exactly as a user would:
+   ``python -m brdf_reconstruct.brdf_addon.batch job.toml`` (Balanced preset).
+4. Writes ``demo_out/``: the batch outputs (``brdf_0.binary``, ``report.json``,
+   ``scene.blend``, the photo-vs-render and reliable-region pictures, the
+   BRDF slice), ``fig4.png`` (the paper's Fig. 4 for this run: BRDF slices,
+   reconstructed against ground truth, at an incident angle of 135 degrees,
+   and spheres rendered with the truth and the reconstruction),
+   ``summary.json`` and ``logs/``.
+
+Run: ``make demo`` (or ``.venv/bin/python bench/demo.py [--material NAME]``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import pathlib
+import shutil
+import subprocess
 import sys
 import time
 
 import numpy as np
 
-from brdf_reconstruct.core import basis, database, merl, metrics, reconstruct, render, sampling
-
-LIGHT = render.REFERENCE_LIGHT
+HERE = pathlib.Path(__file__).resolve().parent
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--material", default=None, help="held-out material name")
-    parser.add_argument("--samples", type=int, default=20)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--material", default="heldout_gold_medium",
+                        help="held-out material of the capture")
+    parser.add_argument("--views", type=int, default=6, help="cameras in the COLMAP ring")
+    parser.add_argument("--lit", type=int, default=3, help="cameras that take a lit photo")
+    parser.add_argument("--width", type=int, default=240)
+    parser.add_argument("--height", type=int, default=180)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--preset", default="BALANCED", choices=("FAST", "BALANCED",
+                                                                 "ACCURATE"))
     parser.add_argument("--out", default="demo_out")
     args = parser.parse_args(argv)
 
-    heldout = {s["name"]: s for s in database.heldout_specs()}
-    name = args.material or next(iter(heldout))
-    if name not in heldout:
-        print(f"error: unknown material {name!r}; choose one of {', '.join(heldout)}",
-              file=sys.stderr)
-        return 2
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    from brdf_reconstruct.core import basis, database, merl, metrics, render
 
+    heldout = {s["name"]: s for s in database.heldout_specs()}
+    if args.material not in heldout:
+        print(f"error: unknown material {args.material!r}; choose one of "
+              f"{', '.join(heldout)}", file=sys.stderr)
+        return 2
+    import capture
+
+    if not (capture.DATA / "stanford-bunny.obj").is_file():
+        print(f"error: the bunny mesh is missing: {capture.DATA / 'stanford-bunny.obj'} "
+              "(set BRDF_SHARED_DATA to the folder that holds it)", file=sys.stderr)
+        return 1
+    out = pathlib.Path(args.out).resolve()
+    if out.exists():
+        shutil.rmtree(out)
+    (out / "logs").mkdir(parents=True)
     t0 = time.perf_counter()
-    print("loading the built-in basis (built and cached on first use, ~2 min) ...", flush=True)
-    B = basis.load_default(progress=lambda i: print(f"  training table {i}", end="\r",
-                                                    flush=True))
-    print(f"basis: {B.info['n_components']} components over {B.info['n_cells']} cells "
-          f"({time.perf_counter() - t0:.1f} s)")
-    truth = database.make_table(heldout[name])
-    cells = sampling.optimal_cells(B, merl.cells_from_linear(B.cells), args.samples, args.seed)
-    values = truth.reshape(3, -1)[:, merl.linear_index(cells)].T
-    rec = reconstruct.reconstruct(B, cells, values)
-    truth_img = render.render_sphere(truth, LIGHT)
-    rec_img = render.render_sphere(rec.table, LIGHT)
-    floor = B.project(truth)
-    result = {
-        "material": name,
-        "samples": int(len(cells)),
-        "condition": rec.condition,
-        "brdf_log_rmse": metrics.brdf_log_rmse(rec.table, truth),
-        "sphere_rel_rmse": metrics.relative_rmse(rec_img, truth_img),
-        "projection_floor_sphere_rel_rmse": metrics.relative_rmse(
-            render.render_sphere(floor, LIGHT), truth_img),
-        "reconstruction": rec.summary(),
+
+    print("[1/4] the BRDF basis (built once and cached, about 2 min on a fresh machine)",
+          flush=True)
+    B = basis.load_default(progress=lambda i: print(f"      training table {i}/150",
+                                                    end="\r", flush=True))
+    print(f"      {B.n_components} components over {len(B.cells)} cells "
+          f"({time.perf_counter() - t0:.0f} s)", flush=True)
+
+    key = f"{args.material}_{args.views}v{args.lit}l_{args.width}x{args.height}_s{args.seed}"
+    cache = basis.default_cache_dir() / "captures" / key
+    job = cache / "job.toml"
+    t1 = time.perf_counter()
+    if job.is_file():
+        print(f"[2/4] reusing the capture in {cache}", flush=True)
+    else:
+        print(f"[2/4] generating the capture in {cache} (Cycles)", flush=True)
+        code = _run([sys.executable, str(HERE / "capture.py"), str(cache), "--material",
+                     args.material, "--views", str(args.views), "--lit", str(args.lit),
+                     "--width", str(args.width), "--height", str(args.height),
+                     "--seed", str(args.seed)], out / "logs" / "capture.log", ("capture:",))
+        if code != 0:
+            print(f"error: the capture failed; see {out / 'logs' / 'capture.log'}",
+                  file=sys.stderr)
+            return 1
+    capture_s = time.perf_counter() - t1
+
+    print(f"[3/4] the batch job, as a user runs it ({args.preset.title()} preset)", flush=True)
+    user_job = out / "job.toml"
+    text = job.read_text().replace('out = "out"', f'out = "{out.as_posix()}"')
+    text = text.replace("[settings]\n", f'[settings]\npreset = "{args.preset}"\n')
+    for folder in ("lit", "sparse"):  # the job's paths are relative to its own folder
+        text = text.replace(f'"{folder}/', f'"{(cache / folder).as_posix()}/')
+    text = text.replace('mesh = "scan.ply"', f'mesh = "{(cache / "scan.ply").as_posix()}"')
+    user_job.write_text(text)
+    print(f"      .venv/bin/python -m brdf_reconstruct.brdf_addon.batch {user_job}", flush=True)
+    t2 = time.perf_counter()
+    code = _run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch", str(user_job)],
+                out / "logs" / "batch.log", ("[", "done:", "error:"))
+    batch_s = time.perf_counter() - t2
+    if code != 0:
+        return code
+
+    print("[4/4] pictures and errors against the ground truth", flush=True)
+    truth = database.make_table(heldout[args.material])
+    rec = merl.read(out / "brdf_0.binary")
+    light = render.REFERENCE_LIGHT
+    truth_img, rec_img = render.render_sphere(truth, light), render.render_sphere(rec, light)
+    report = json.loads((out / "report.json").read_text())
+    region = report["regions"][0]
+    summary = {
+        "command": "make demo  (" + " ".join(
+            [".venv/bin/python bench/demo.py", *(argv or sys.argv[1:])]) + ")",
+        "material": args.material, "preset": args.preset, "views": args.views,
+        "lit_photos": args.lit, "resolution": [args.width, args.height],
+        "sphere_error": metrics.sphere_error(rec, truth),
+        "brdf_log_rmse": metrics.brdf_log_rmse(rec, truth),
+        "bake_error": region.get("material", {}).get("bake_error"),
+        "counts": region["counts"],
+        "seconds": {"capture": capture_s, "batch": batch_s,
+                    "total": time.perf_counter() - t0},
     }
-    merl.write(out / f"brdf_{name}.binary", rec.table)
-    (out / "report.json").write_text(json.dumps(result, indent=1))
-    plot(truth, rec.table, truth_img, rec_img, name, out / "demo.png")
-    print(json.dumps({k: v for k, v in result.items() if k != "reconstruction"}, indent=1))
-    print(f"wrote {out}/demo.png, {out}/brdf_{name}.binary, {out}/report.json "
-          f"in {time.perf_counter() - t0:.1f} s")
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    plot(truth, rec, truth_img, rec_img, f"{args.material} (bunny capture)", out / "fig4.png")
+    print(f"      rendered-sphere error {summary['sphere_error']:.3f} (3 evaluation lights), "
+          f"BRDF log RMSE {summary['brdf_log_rmse']:.3f}")
+    print(f"done in {summary['seconds']['total']:.0f} s: {out}/fig4.png, "
+          "brdf_0.binary, report.json, scene.blend, brdf_0_photo_vs_render.png, "
+          "brdf_0_reliable_region.png", flush=True)
     return 0
+
+
+def _run(command, log: pathlib.Path, show: tuple) -> int:
+    """Run ``command``; lines starting with one of ``show`` go to the terminal (the
+    progress display), every line to ``log``. Returns the exit status."""
+    with open(log, "w") as sink:
+        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                   text=True, env=dict(os.environ), bufsize=1)
+        for line in process.stdout:
+            sink.write(line)
+            if line.startswith(show):
+                print("      " + line.rstrip(), flush=True)
+        return process.wait()
 
 
 def slice_135(table: np.ndarray, n_points: int = 181):
     """BRDF in the plane of incidence for light at 45 degrees from the normal (the paper's
-    'incident angle 135 degrees' plots), view angle from -90 to 90 degrees."""
+    'incident angle 135 degrees' plots), view angle from -90 to 90 degrees.
+    Returns (angles (P,) degrees, values (P, 3) 1/sr)."""
+    from brdf_reconstruct.core import merl
+
     ti = np.radians(45.0)
     to = np.radians(np.linspace(-89.5, 89.5, n_points))
     light = np.tile([-np.sin(ti), 0.0, np.cos(ti)], (n_points, 1))
@@ -84,6 +166,7 @@ def slice_135(table: np.ndarray, n_points: int = 181):
 
 
 def plot(truth, rec, truth_img, rec_img, name, path):
+    """The paper's Fig. 4 layout: slices (solid reconstructed, dashed truth) and spheres."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -96,7 +179,7 @@ def plot(truth, rec, truth_img, rec_img, name, path):
         axes[0].plot(angle, t[:, c], colour + "--", lw=1)
         axes[0].plot(angle, r[:, c], colour + "-", lw=1)
     axes[0].set_yscale("log")
-    axes[0].set_xlabel("view angle (degrees), light at 45 degrees")
+    axes[0].set_xlabel("view angle (degrees); incident light at 135 degrees")
     axes[0].set_ylabel("BRDF (1/sr)")
     axes[0].set_title(f"{name}: reconstructed (solid) vs ground truth (dashed)", fontsize=9)
     scale = np.percentile(truth_img[truth_img > 0], 99) if np.any(truth_img > 0) else 1.0
@@ -111,4 +194,5 @@ def plot(truth, rec, truth_img, rec_img, name, path):
 
 
 if __name__ == "__main__":
+    sys.path.insert(0, str(HERE))
     sys.exit(main())

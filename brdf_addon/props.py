@@ -25,19 +25,14 @@ from bpy.props import (
 from bpy.types import PropertyGroup
 
 from .job import SETTING_NAMES
+from .presets import PRESETS
 
 # Blender 4.5+ warns on "//" paths unless the property says it takes them
 PATH = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
 
-# Presets: (n_samples, n_trials, kl_path). Provisional: the speed/accuracy
-# benchmark that must set them (issue 5, bench/results/tradeoff.json) does not
-# exist yet; these follow the paper (6 samples) and bench/results/core.json
-# (20 optimal samples: sphere error 0.062 vs 0.119 at random; 40: 0.025).
-PRESETS = {
-    "FAST": dict(samples=6, trials=4, kl_path="FAST"),
-    "BALANCED": dict(samples=20, trials=16, kl_path="FAST"),
-    "ACCURATE": dict(samples=40, trials=32, kl_path="CYCLES"),
-}
+# Presets: brdf_addon/presets.py (plain data, measured by bench/tradeoff.py). The
+# settings' defaults are the Balanced preset, the default preset.
+_BALANCED = PRESETS["BALANCED"]
 PRESET_NOTE = ("Provisional presets: the speed/accuracy benchmark that will set them "
                "is not done yet")
 
@@ -166,22 +161,23 @@ class BRDFSettings(PropertyGroup):
         name="Preset", default="BALANCED", update=_apply_preset,
         items=[("FAST", "Fast", PRESET_NOTE), ("BALANCED", "Balanced", PRESET_NOTE),
                ("ACCURATE", "Accurate", PRESET_NOTE), ("CUSTOM", "Custom", "Own values")])
-    samples: IntProperty(name="Samples", default=20, min=1, soft_max=200,
+    samples: IntProperty(name="Samples", default=_BALANCED["samples"], min=1, soft_max=200,
                          description="Condition-optimal directions per trial (paper: 6)")
-    trials: IntProperty(name="Trials", default=16, min=1, soft_max=128,
+    trials: IntProperty(name="Trials", default=_BALANCED["trials"], min=1, soft_max=128,
                         description="Random-subset reconstructions; KL picks one")
-    subset_fraction: FloatProperty(name="Subset Fraction", default=0.5, min=0.01, max=1.0,
+    subset_fraction: FloatProperty(name="Subset Fraction",
+                                   default=_BALANCED["subset_fraction"], min=0.01, max=1.0,
                                    description="Share of reliable pixels each trial draws")
     min_reliable_samples: IntProperty(name="Min Reliable Samples", default=20, min=1,
                                       description="Regions with fewer are skipped")
 
     # KL selection
     kl_path: EnumProperty(
-        name="Selection", default="FAST",
+        name="Selection", default=_BALANCED["kl_path"],
         items=[("FAST", "Fast (numpy)", "Shade each candidate table on the G-buffers"),
                ("CYCLES", "Accurate (Cycles)", "Render each candidate's baked material")])
     kl_bins: IntProperty(name="KL Bins", default=64, min=4, max=4096)
-    kl_samples: IntProperty(name="Cycles Samples", default=16, min=1, max=4096,
+    kl_samples: IntProperty(name="Cycles Samples", default=_BALANCED["kl_samples"], min=1, max=4096,
                             description="Cycles samples per KL render")
     seed: IntProperty(name="Seed", default=0, min=0,
                       description="Seed of every random choice (sampling trials); "

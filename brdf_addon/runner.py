@@ -243,10 +243,11 @@ class ReconstructRun:
     caller's thread (background mode, tests).
     """
 
-    def __init__(self, scene, threaded: bool = True, bake: bool = True):
+    def __init__(self, scene, threaded: bool = True, bake: bool = True, on_progress=None):
         self.scene = scene
         self.threaded = threaded
         self.bake = bake
+        self.on_progress = on_progress
         self.progress = 0.0
         self.message = "starting"
         self.report = None
@@ -262,6 +263,18 @@ class ReconstructRun:
         check_scene(scene)
         self._settings = props.pipeline_settings(scene.brdf)
         self._n_photos = len(scene.brdf.photos)
+
+    @property
+    def message(self) -> str:
+        """What the run is doing now, one line; setting it calls ``on_progress(progress,
+        message)`` (the batch entry prints it; the panel polls instead)."""
+        return self._message
+
+    @message.setter
+    def message(self, text: str) -> None:
+        self._message = text
+        if self.on_progress is not None:
+            self.on_progress(self.progress, text)
 
     def cancel(self) -> None:
         self._cancel = True
@@ -328,7 +341,7 @@ class ReconstructRun:
             raise ValueError(str(value)) from value
         if self.scene.brdf.kl_path == "CYCLES" and self._cycles_step(value):
             return False
-        self.message, self.progress = "writing results", 0.9
+        self.progress, self.message = 0.9, "writing results"
         self._timings["total_before_outputs"] = time.perf_counter() - self._t0
         self.report = write_back(self.scene, self._inputs, value, self._timings, self.bake,
                                  self._fits)

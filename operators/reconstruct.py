@@ -40,7 +40,9 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            report = _runner().ReconstructRun(context.scene, threaded=False).run()
+            echo = _echo if bpy.app.background else None
+            report = _runner().ReconstructRun(context.scene, threaded=False,
+                                              on_progress=echo).run()
         except (ValueError, OSError, pipeline.Cancelled) as error:
             self.report({"ERROR"}, _sentence(error))
             return {"CANCELLED"}
@@ -119,3 +121,8 @@ def _sentence(error) -> str:
 
 
 CLASSES = (BRDF_OT_reconstruct,)
+
+
+def _echo(progress: float, message: str) -> None:
+    """Progress on the terminal for background (batch) runs: one line per step."""
+    print(f"[{progress:4.0%}] {message}", flush=True)

@@ -60,6 +60,11 @@ def test_good_job_exits_0_with_outputs(job_dir):
         p.name for p in out.iterdir()}
     report = json.loads((out / "report.json").read_text())
     assert report["settings"]["trials"] == 2 and report["regions"][0]["status"] == "ok"
+    # progress on the terminal: one "[ pp%] step" line per step, rising to 100 %
+    steps = [ln for ln in result.stdout.splitlines() if ln.startswith("[") and "%]" in ln]
+    assert any("G-buffers 1/" in ln for ln in steps) and steps[-1].endswith("done")
+    percents = [int(ln[1:ln.index("%")]) for ln in steps]
+    assert percents == sorted(percents) and percents[-1] == 100
     assert _digest(job_dir / "scene.blend") == blend  # the job's .blend is never written
     assert _digest(job_dir / "view0.exr") == photo
 

@@ -1,0 +1,174 @@
+"""The bunny capture as arrays, for benchmarks that run the pipeline many times.
+
+A capture (``bench/capture.py``) is files: photos rendered by Cycles with the
+ground-truth table. A sweep over settings and materials needs the same capture
+hundreds of times, so this module keeps what does not change:
+
+- :func:`gbuffers`: Cycles G-buffers (``brdf_addon.gbuffer``) of the ground-truth
+  bunny and of its degraded "photogrammetry" copy, seen by the lit cameras of
+  the capture's COLMAP ring, cached in ``<cache>/captures/arrays_<key>.npz``.
+- :func:`photo_inputs`: photos of any table shaded with numpy on the ground
+  truth's G-buffers (``selection.shade_gbuffer``: ``rho(n, l, v) (n.l) E V``, the
+  same direct-light model the Cycles table shader renders; they agree within
+  1 % on unshadowed pixels, ``tests/test_blender_table_shader.py``), paired with
+  the scan's G-buffers as ``pipeline.PhotoInput``s, exactly what the extension
+  hands to ``core.pipeline``.
+
+One difference from the Cycles photos: the numpy photo holds the radiance at
+the pixel centre, a Cycles photo the pixel's average (anti-aliasing). The demo
+and the end-to-end tests use Cycles photos; sweeps use these.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import pathlib
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
+
+# The capture's distant light (world space, towards the light), as in capture.generate.
+LIGHT = (0.35, -0.45, 0.82)
+FIELDS = ("truth_normal", "truth_position", "truth_visibility", "truth_mask",
+          "scan_normal", "scan_position", "scan_visibility", "scan_region", "camera_center")
+
+
+def _key(**options) -> str:
+    text = json.dumps(options, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def gbuffers(resolution=(240, 180), n_views: int = 6, lit_views=(0, 2, 4), light=LIGHT,
+             seed: int = 0, scan_options: dict | None = None, mesh=None,
+             cache: bool = True) -> dict:
+    """G-buffers of the truth and the scan for each lit camera, (V, H, W, ...) arrays.
+
+    Returns a dict: ``truth_normal``, ``truth_position``, ``scan_normal``,
+    ``scan_position`` (V, H, W, 3) float32 world space (unit normals, scene units;
+    the object has unit radius); ``truth_visibility``, ``scan_visibility``
+    (V, H, W) float32 in [0, 1]; ``truth_mask`` (V, H, W) bool; ``scan_region``
+    (V, H, W) int32 (-1 = background); ``camera_center`` (V, 3) float64;
+    ``scan_gbuffer_s``: Cycles seconds per photo for the scan's G-buffers (what
+    a user's run costs; measured when rendered, stored in the cache);
+    ``light`` (3,) unit; ``normal_error_deg`` (median, 90th percentile) of the
+    scan's normals against the truth's over pixels both cover; ``render_s``
+    wall seconds of the Cycles G-buffer renders (0 when read from the cache).
+    Resets Blender to an empty scene when it has to render.
+    """
+    from brdf_reconstruct.core import basis
+
+    light = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
+    mesh = pathlib.Path(mesh) if mesh else None
+    key = _key(resolution=list(resolution), n_views=n_views, lit_views=list(lit_views),
+               light=light.round(9).tolist(), seed=seed, scan_options=scan_options or {},
+               mesh=mesh.name if mesh else "stanford-bunny.obj", version=2)
+    path = basis.default_cache_dir() / "captures" / f"arrays_{key}.npz"
+    if cache and path.is_file():
+        with np.load(path) as data:
+            out = {k: data[k] for k in data.files}
+        out["render_s"] = 0.0
+        return out
+    out = _render(resolution, n_views, lit_views, light, seed, scan_options, mesh)
+    if cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez_compressed(tmp, **{k: v for k, v in out.items() if k != "render_s"})
+        tmp.replace(path)
+    return out
+
+
+def build_scene(resolution=(240, 180), n_views: int = 6, seed: int = 0,
+                scan_options: dict | None = None, mesh=None):
+    """The capture's Blender objects in a new empty scene: ``(truth, scan, cameras)``
+    (the ground-truth bunny, its degraded scan, and one camera per view of the
+    COLMAP ring, imported through the extension's COLMAP importer). The same
+    arguments give the same scan (seeded) as :func:`gbuffers` used."""
+    import bpy
+    import capture
+
+    from brdf_reconstruct.operators import import_colmap
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    truth = capture.load_ground_truth(mesh or capture.DATA / "stanford-bunny.obj")
+    scan = capture.photogrammetry_mesh(truth, seed=seed, **(scan_options or {}))
+    poses = capture.camera_ring(n_views)
+    with tempfile.TemporaryDirectory() as tmp:
+        sparse = capture.write_colmap(pathlib.Path(tmp) / "sparse", poses, *resolution,
+                                      1.25 * resolution[0], np.zeros((1, 3)))
+        cameras = import_colmap.import_cameras(bpy.context.scene, sparse)
+    return truth, scan, cameras
+
+
+def _render(resolution, n_views, lit_views, light, seed, scan_options, mesh) -> dict:
+    from brdf_reconstruct.brdf_addon import gbuffer
+
+    t0 = time.perf_counter()
+    truth, scan, cameras = build_scene(resolution, n_views, seed, scan_options, mesh)
+    scan_s = 0.0
+    parts = {name: [] for name in FIELDS}
+    for i in lit_views:
+        a = gbuffer.render_gbuffers(truth, cameras[i], light, resolution=tuple(resolution))
+        t1 = time.perf_counter()
+        b = gbuffer.render_gbuffers(scan, cameras[i], light, resolution=tuple(resolution))
+        scan_s += time.perf_counter() - t1
+        for name, value in (("truth_normal", a.normal), ("truth_position", a.position),
+                            ("truth_visibility", a.visibility), ("truth_mask", a.mask),
+                            ("scan_normal", b.normal), ("scan_position", b.position),
+                            ("scan_visibility", b.visibility), ("scan_region", b.region),
+                            ("camera_center", b.camera_center)):
+            parts[name].append(value)
+    out = {name: np.stack(value) for name, value in parts.items()}
+    for name in FIELDS:
+        if out[name].dtype == np.float64 and name != "camera_center":
+            out[name] = out[name].astype(np.float32)
+    both = out["truth_mask"] & (out["scan_region"] >= 0)
+    cos = np.clip(np.sum(out["truth_normal"][both] * out["scan_normal"][both], axis=-1,
+                         dtype=np.float64), -1.0, 1.0)
+    angles = np.degrees(np.arccos(cos))
+    out["normal_error_deg"] = np.array([np.median(angles), np.percentile(angles, 90)])
+    out["light"] = light
+    out["render_s"] = time.perf_counter() - t0
+    out["scan_gbuffer_s"] = np.array(scan_s / len(lit_views))
+    return out
+
+
+def photo_inputs(arrays: dict, table: np.ndarray, *, irradiance=1.0, noise: float = 0.0,
+                 clip_level: float | None = None, seed: int = 0, views=None) -> list:
+    """Photos of ``table`` on the ground truth's geometry, with the scan's G-buffers.
+
+    table: (3, 90, 90, 180) ground-truth BRDF, 1/sr. noise: relative Gaussian
+    noise per pixel and channel (0.01 = 1 %), seeded. clip_level: the camera's
+    white level; pixels are clipped to it as a sensor saturates (the pipeline's
+    ``ObservationSettings.clip_level`` decides what it then removes). views: the
+    lit-view indices to use (default all). Returns ``pipeline.PhotoInput``s.
+    """
+    from brdf_reconstruct.core import pipeline, selection
+
+    light = np.asarray(arrays["light"], dtype=np.float64)
+    rng = np.random.default_rng(seed)
+    inputs = []
+    for i in range(len(arrays["camera_center"])) if views is None else views:
+        f64 = {k: np.asarray(arrays[k][i], dtype=np.float64) for k in (
+            "truth_normal", "truth_position", "truth_visibility", "scan_normal",
+            "scan_position", "scan_visibility")}
+        photo = selection.shade_gbuffer(table, f64["truth_normal"], f64["truth_visibility"],
+                                        arrays["truth_mask"][i], f64["truth_position"],
+                                        arrays["camera_center"][i], light, irradiance)
+        if noise > 0.0:
+            photo *= 1.0 + noise * rng.standard_normal(photo.shape)
+            np.maximum(photo, 0.0, out=photo)
+        if clip_level is not None:
+            np.minimum(photo, clip_level, out=photo)
+        inputs.append(pipeline.PhotoInput(
+            photo=photo, normal=f64["scan_normal"], position=f64["scan_position"],
+            visibility=f64["scan_visibility"], region=arrays["scan_region"][i],
+            camera_center=arrays["camera_center"][i], light=light, irradiance=irradiance,
+            name=f"view{i}"))
+    return inputs

@@ -1,0 +1,452 @@
+"""The speed/accuracy trade on the bunny capture, and the paper's ablation on it.
+
+Run: ``make bench`` (or ``.venv/bin/python bench/tradeoff.py [--quick]
+[--part sweep|presets|ablation]``). Writes ``bench/results/tradeoff.json`` and
+``bench/results/tradeoff.png`` (the Pareto plot), and ``bench/results/ablation_bunny.json``
+/ ``.png``.
+
+The capture: the Stanford bunny, degraded as a photogrammetry mesh (decimated,
+smoothed, noisy; ``bench/capture.py``), three lit photos from a COLMAP camera
+ring, Cycles G-buffers of the truth and of the scan (``bench/capture_arrays.py``),
+photos shaded from the truth's geometry with the true table plus 1 % noise.
+
+**Sweep** (one setting at a time away from a base point, for a glossy metal and
+a rough dielectric, two seeds each): trials; samples per trial, from the
+paper's 6 up to every reliable sample; photo resolution; basis size (PCA
+components, the basis truncated; 80 is built); KL path (fast numpy, or Cycles
+renders of each baked candidate at 4/16/64 samples). Each point runs in its own
+child process and records wall seconds per stage (G-buffers: the Cycles render
+of the scan per photo, measured when the capture was rendered; observations,
+reliable region, sampling, reconstruction, selection, bake = the lobe fit),
+peak memory (the child's max RSS), and the errors against the truth: BRDF log
+RMSE and the rendered-sphere relative RMSE under three evaluation lights
+(``core.metrics.sphere_error``) of the chosen table and of the baked material.
+
+**Presets**: the Fast / Balanced / Accurate settings of ``brdf_addon.props.PRESETS``
+run as points of their own, so the README quotes what each measured.
+
+**Ablation** (the paper's Fig. 3e against Sec. 3.1): no constraints, each
+constraint alone, all constraints; each with the median trial (no KL) and the
+KL-chosen trial; the 12 held-out materials on the blunted bunny.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as futures
+import dataclasses
+import datetime
+import json
+import multiprocessing
+import os
+import pathlib
+import platform
+import sys
+import time
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
+
+MATERIALS = ("heldout_gold_medium", "heldout_rough_plastic")  # glossy metal, rough dielectric
+SEEDS = (0, 1)
+ALL = 10**6  # "every reliable sample": more cells than any region has
+
+
+@dataclasses.dataclass(frozen=True)
+class Point:
+    """One configuration. samples = ALL with trials 1 and subset 1.0 is "all samples"."""
+
+    material: str = MATERIALS[0]
+    seed: int = 0
+    resolution: tuple = (240, 180)
+    photos: int = 3
+    samples: int = 20
+    trials: int = 16
+    subset: float = 0.5
+    components: int = 40
+    kl: str = "fast"  # or "cycles"
+    kl_samples: int = 16
+    constraints: str = "all"  # all | none | curvature | monotonicity | brightest
+    noise: float = 0.01
+
+    def label(self) -> str:
+        return (f"samples={'all' if self.samples >= ALL else self.samples} trials={self.trials}"
+                f" res={self.resolution[0]}x{self.resolution[1]} k={self.components}"
+                f" kl={self.kl}{self.kl_samples if self.kl == 'cycles' else ''}")
+
+
+BASE = Point()
+AXES = {
+    "trials": [dict(trials=t) for t in (1, 4, 16, 64)],
+    "samples": [dict(samples=s) for s in (6, 20, 80)]
+               + [dict(samples=ALL, trials=1, subset=1.0)],
+    "resolution": [dict(resolution=r) for r in ((120, 90), (240, 180), (480, 360), (960, 720))],
+    "components": [dict(components=k) for k in (10, 20, 40, 80)],
+    "kl": [dict(kl="fast")] + [dict(kl="cycles", kl_samples=s) for s in (4, 16, 64)],
+}
+CONSTRAINTS = {
+    "none": dict(use_curvature=False, use_monotonicity=False, use_brightest=False),
+    "curvature": dict(use_curvature=True, use_monotonicity=False, use_brightest=False),
+    "monotonicity": dict(use_curvature=False, use_monotonicity=True, use_brightest=False),
+    "brightest": dict(use_curvature=False, use_monotonicity=False, use_brightest=True),
+    "all": dict(use_curvature=True, use_monotonicity=True, use_brightest=True),
+}
+STAGES = ("gbuffers", "observations", "reliable", "sampling", "reconstruction", "selection",
+          "bake")
+
+
+def _basis(components: int):
+    from brdf_reconstruct.core import basis
+
+    if components <= basis.N_COMPONENTS:
+        full = basis.load_default()
+        if components == full.n_components:
+            return full
+        return dataclasses.replace(full, Q=np.ascontiguousarray(full.Q[:, :components]),
+                                   singular_values=full.singular_values[:components],
+                                   _derived={})
+    return basis.load_default(n_components=components)
+
+
+def _spec(name: str) -> dict:
+    from brdf_reconstruct.core import database
+
+    return {s["name"]: s for s in database.heldout_specs()}[name]
+
+
+def _cycles_select(point: Point, arrays, inputs, candidates):
+    """(winner, seconds): KL of Cycles renders of each baked candidate (the
+    extension's accurate path, ``brdf_addon.cycles_select``)."""
+    from types import SimpleNamespace
+
+    import capture_arrays
+
+    from brdf_reconstruct.brdf_addon import cycles_select
+
+    lit = (0, 2, 4)[: point.photos]
+    _truth, scan, cameras = capture_arrays.build_scene(point.resolution)
+    scene = SimpleNamespace(brdf=SimpleNamespace(
+        target=scan, photos=[SimpleNamespace(camera=cameras[i]) for i in lit]))
+    t0 = time.perf_counter()
+    _score, winner = cycles_select.select_by_cycles(scene, inputs, 0, candidates,
+                                                    samples=point.kl_samples)
+    return winner, time.perf_counter() - t0
+
+
+def run_point(point: Point) -> dict:
+    """Run one configuration (in a fresh process) and measure it."""
+    import resource
+
+    import capture_arrays
+
+    from brdf_reconstruct.core import database, lobe_fit, metrics, pipeline, reliable
+
+    arrays = capture_arrays.gbuffers(resolution=point.resolution)
+    truth = database.make_table(_spec(point.material))
+    B = _basis(point.components)
+    inputs = capture_arrays.photo_inputs(arrays, truth, noise=point.noise, seed=point.seed,
+                                         views=range(point.photos))
+    settings = pipeline.PipelineSettings(
+        reliable=reliable.ReliableSettings(**CONSTRAINTS[point.constraints]),
+        n_samples=point.samples, n_trials=point.trials, subset_fraction=point.subset,
+        seed=point.seed)
+    t0 = time.perf_counter()
+    result = pipeline.run(B, inputs, settings)
+    pipeline_s = time.perf_counter() - t0
+    region = result.regions[0]
+    timings = {k: float(result.timings.get(k, 0.0)) for k in STAGES}
+    timings["gbuffers"] = float(arrays["scan_gbuffer_s"]) * point.photos
+    winner = region.winner
+    if point.kl == "cycles":
+        winner, timings["selection"] = _cycles_select(point, arrays, inputs, region.candidates)
+    table = np.asarray(region.candidates[winner], dtype=np.float64)
+    t0 = time.perf_counter()
+    fit = lobe_fit.fit(table, errors=False)
+    baked = lobe_fit.tabulate(fit.params)
+    timings["bake"] = time.perf_counter() - t0
+    trial_errors = [metrics.sphere_error(np.asarray(c, np.float64), truth)
+                    for c in region.candidates]
+    out = {
+        "point": dataclasses.asdict(point), "label": point.label(),
+        "timings_s": timings, "total_s": float(sum(timings.values())),
+        "pipeline_s": pipeline_s,
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "counts": region.counts, "winner": int(winner),
+        "sphere_error": metrics.sphere_error(table, truth),
+        "brdf_log_rmse": metrics.brdf_log_rmse(table, truth),
+        "baked_sphere_error": metrics.sphere_error(baked, truth),
+        "median_trial_sphere_error": float(np.median(trial_errors)),
+        # NaN marks cells no training table measured (outside the basis), Inf never
+        "no_inf": bool(not np.isinf(table).any() and not np.isinf(baked).any()),
+        "nan_only_outside_basis": bool(not np.isnan(
+            table.reshape(3, -1)[:, B.cells]).any()),
+        "normal_error_deg": arrays["normal_error_deg"].tolist(),
+    }
+    return out
+
+
+def _pool():
+    return futures.ProcessPoolExecutor(max_workers=1, max_tasks_per_child=1,
+                                       mp_context=multiprocessing.get_context("spawn"))
+
+
+def _run_all(points, label: str) -> list:
+    rows = []
+    with _pool() as pool:
+        jobs = [pool.submit(run_point, p) for p in points]
+        for i, (p, job) in enumerate(zip(points, jobs, strict=True)):
+            t0 = time.perf_counter()
+            row = job.result()
+            rows.append(row)
+            print(f"[{label} {i + 1}/{len(points)}] {p.material} seed {p.seed} {p.label()}: "
+                  f"sphere {row['sphere_error']:.3f}, total {row['total_s']:.1f} s, "
+                  f"{row['peak_rss_mb']:.0f} MB (waited {time.perf_counter() - t0:.0f} s)",
+                  flush=True)
+    return rows
+
+
+def sweep_points(quick: bool) -> tuple[list, dict]:
+    """Distinct points of the one-at-a-time sweep, and per axis the indices of its points."""
+    points, index, axes = [], {}, {}
+    materials = MATERIALS[:1] if quick else MATERIALS
+    seeds = SEEDS[:1] if quick else SEEDS
+    for axis, changes in AXES.items():
+        if quick and axis in ("components", "kl", "resolution"):
+            changes = changes[:2]
+        axes[axis] = []
+        for change in changes:
+            config = dataclasses.replace(BASE, **change)
+            axes[axis].append(config)
+            for m in materials:
+                for s in seeds:
+                    p = dataclasses.replace(config, material=m, seed=s)
+                    if p not in index:
+                        index[p] = len(points)
+                        points.append(p)
+    return points, axes
+
+
+def summarise(rows: list, configs: list) -> list:
+    """Per configuration: medians over materials and seeds."""
+    out = []
+    for config in configs:
+        key = dataclasses.asdict(config)
+        mine = [r for r in rows if {k: v for k, v in r["point"].items()
+                                    if k not in ("material", "seed")}
+                == {k: (list(v) if isinstance(v, tuple) else v) for k, v in key.items()
+                    if k not in ("material", "seed")}]
+        if not mine:
+            continue
+        def med(name, mine=mine):
+            return float(np.median([r[name] for r in mine]))
+
+        out.append({
+            "label": config.label(), "config": key, "runs": len(mine),
+            "sphere_error": med("sphere_error"), "brdf_log_rmse": med("brdf_log_rmse"),
+            "baked_sphere_error": med("baked_sphere_error"),
+            "median_trial_sphere_error": med("median_trial_sphere_error"),
+            "total_s": med("total_s"), "peak_rss_mb": med("peak_rss_mb"),
+            "timings_s": {s: float(np.median([r["timings_s"][s] for r in mine]))
+                          for s in STAGES},
+            "per_material": {m: float(np.median([r["sphere_error"] for r in mine
+                                                 if r["point"]["material"] == m]))
+                             for m in sorted({r["point"]["material"] for r in mine})},
+        })
+    return out
+
+
+def pareto(summary: list) -> list:
+    """Labels of the points no other point beats in both time and sphere error."""
+    front = []
+    for a in summary:
+        if not any(b["total_s"] <= a["total_s"] and b["sphere_error"] <= a["sphere_error"]
+                   and (b["total_s"], b["sphere_error"]) != (a["total_s"], a["sphere_error"])
+                   for b in summary):
+            front.append(a["label"])
+    return front
+
+
+def preset_points(quick: bool) -> dict:
+    """The extension's presets as points (settings from ``brdf_addon.props.PRESETS``,
+    read without Blender: the same dict is in ``brdf_addon/presets.py``)."""
+    from brdf_reconstruct.brdf_addon.presets import PRESETS
+
+    configs = {}
+    for name, p in PRESETS.items():
+        configs[name] = dataclasses.replace(
+            BASE, samples=p["samples"], trials=p["trials"], subset=p["subset_fraction"],
+            kl="cycles" if p["kl_path"] == "CYCLES" else "fast", kl_samples=p["kl_samples"])
+    return configs
+
+
+def run_ablation(quick: bool) -> dict:
+    """The paper's ablation on the blunted bunny, all held-out materials (in-process)."""
+    import capture_arrays
+
+    from brdf_reconstruct.core import basis, database, metrics, pipeline, reliable
+
+    arrays = capture_arrays.gbuffers()
+    B = basis.load_default()
+    specs = database.heldout_specs()[: 3 if quick else None]
+    per_material = {}
+    for spec in specs:
+        truth = database.make_table(spec)
+        inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=0)
+        errors = {}
+        for name, options in CONSTRAINTS.items():
+            settings = pipeline.PipelineSettings(
+                reliable=reliable.ReliableSettings(**options), n_samples=BASE.samples,
+                n_trials=BASE.trials, subset_fraction=BASE.subset, seed=0)
+            try:
+                r = pipeline.run(B, inputs, settings).regions[0]
+            except ValueError as error:
+                errors[name] = {"error": str(error)}
+                continue
+            trial = [metrics.sphere_error(np.asarray(c, np.float64), truth)
+                     for c in r.candidates]
+            errors[name] = {"median_trial": float(np.median(trial)),
+                            "kl": float(trial[r.winner]), "reliable": r.counts.get("reliable"),
+                            "skipped": r.skipped_assumptions}
+        per_material[spec["name"]] = errors
+        print(f"[ablation] {spec['name']}: " + ", ".join(
+            f"{k} {v.get('kl', float('nan')):.3f}" for k, v in errors.items()), flush=True)
+    variants = [(c, path) for c in CONSTRAINTS for path in ("median_trial", "kl")]
+    median = {f"{c}_{path}": float(np.median([m[c][path] for m in per_material.values()
+                                              if path in m[c]]))
+              for c, path in variants}
+    wins = sum(m["all"]["kl"] < m["none"]["median_trial"] for m in per_material.values())
+    return {
+        "median_sphere_error": median,
+        "ratio_all_kl_to_none": median["all_kl"] / median["none_median_trial"],
+        "ratio_all_kl_to_none_kl": median["all_kl"] / median["none_kl"],
+        "materials_where_all_kl_beats_none": f"{wins}/{len(per_material)}",
+        "per_material": per_material,
+        "normal_error_deg": {"median": float(arrays["normal_error_deg"][0]),
+                             "p90": float(arrays["normal_error_deg"][1])},
+        "settings": {"samples": BASE.samples, "trials": BASE.trials, "subset": BASE.subset,
+                     "resolution": list(BASE.resolution), "photos": BASE.photos,
+                     "noise": BASE.noise},
+    }
+
+
+def _meta(argv) -> dict:
+    return {"command": " ".join([".venv/bin/python", "bench/tradeoff.py", *argv]),
+            "date": datetime.date.today().isoformat(), "cpus": os.cpu_count(),
+            "platform": platform.platform(),
+            "note": "2-core machine shared with other jobs during the run; wall times "
+                    "are noisy, compare within this run"}
+
+
+def plot_tradeoff(report: dict, path: pathlib.Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    colours = dict(zip(AXES, ("C0", "C1", "C2", "C3", "C4"), strict=True))
+    front = set(report["pareto"])
+    for axis, labels in report["axes"].items():
+        pts = [s for s in report["summary"] if s["label"] in labels]
+        ax.scatter([p["total_s"] for p in pts], [p["sphere_error"] for p in pts],
+                   c=colours[axis], label=axis, s=28)
+        for p in pts:
+            ax.annotate(_short(p["label"], axis), (p["total_s"], p["sphere_error"]),
+                        fontsize=6, xytext=(3, 2), textcoords="offset points")
+    fr = sorted((s for s in report["summary"] if s["label"] in front),
+                key=lambda s: s["total_s"])
+    ax.plot([s["total_s"] for s in fr], [s["sphere_error"] for s in fr], "k--", lw=0.8,
+            label="Pareto front")
+    for name, s in report.get("presets", {}).items():
+        ax.scatter([s["total_s"]], [s["sphere_error"]], marker="*", s=160, c="k", zorder=5)
+        ax.annotate(name.title(), (s["total_s"], s["sphere_error"]), fontsize=8,
+                    xytext=(5, -9), textcoords="offset points", weight="bold")
+    ax.set_xscale("log")
+    ax.set_xlabel("wall time per run, s (G-buffers + science + bake; log)")
+    ax.set_ylabel("rendered-sphere relative RMSE (median)")
+    ax.set_title("Speed/accuracy on the bunny capture (gold + rough plastic, 2 seeds)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _short(label: str, axis: str) -> str:
+    key = {"trials": "trials=", "samples": "samples=", "resolution": "res=",
+           "components": "k=", "kl": "kl="}[axis]
+    return next(part for part in label.split() if part.startswith(key))
+
+
+def plot_ablation(report: dict, path: pathlib.Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    med = report["median_sphere_error"]
+    names = list(CONSTRAINTS)
+    x = np.arange(len(names))
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.bar(x - 0.2, [med[f"{n}_median_trial"] for n in names], 0.4, label="median trial")
+    ax.bar(x + 0.2, [med[f"{n}_kl"] for n in names], 0.4, label="KL-chosen trial")
+    ax.set_xticks(x, names)
+    ax.set_ylabel("median rendered-sphere rel. RMSE")
+    ax.set_title("Ablation on the blunted bunny (12 held-out materials)")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--part", choices=("all", "sweep", "presets", "ablation"),
+                        default="all")
+    args = parser.parse_args(argv)
+    RESULTS.mkdir(exist_ok=True)
+    t0 = time.perf_counter()
+    import capture_arrays
+
+    for res in AXES["resolution"]:  # render (or find) the G-buffers once, in this process
+        capture_arrays.gbuffers(resolution=res["resolution"])
+    path = RESULTS / "tradeoff.json"
+    report = json.loads(path.read_text()) if path.is_file() else {}
+    if args.part in ("all", "sweep"):
+        points, axes = sweep_points(args.quick)
+        rows = _run_all(points, "sweep")
+        configs = [c for cs in axes.values() for c in cs]
+        report.update(meta=_meta(argv), base=dataclasses.asdict(BASE), rows=rows,
+                      summary=summarise(rows, list(dict.fromkeys(configs))),
+                      axes={a: [c.label() for c in cs] for a, cs in axes.items()})
+        report["pareto"] = pareto(report["summary"])
+    if args.part in ("all", "presets"):
+        configs = preset_points(args.quick)
+        points = [dataclasses.replace(c, material=m, seed=s) for c in configs.values()
+                  for m in MATERIALS for s in SEEDS]
+        rows = _run_all(points, "presets")
+        summary = summarise(rows, list(configs.values()))
+        report["presets"] = {name: s for name, s in zip(configs, summary, strict=True)}
+        report["preset_rows"] = rows
+        report["presets_meta"] = _meta(argv)
+    if args.part in ("all", "ablation"):
+        ablation = run_ablation(args.quick)
+        ablation["meta"] = _meta(argv)
+        (RESULTS / "ablation_bunny.json").write_text(json.dumps(ablation, indent=1))
+        plot_ablation(ablation, RESULTS / "ablation_bunny.png")
+        print(f"ablation: all constraints + KL / no constraints = "
+              f"{ablation['ratio_all_kl_to_none']:.2f}")
+    if "summary" in report:
+        path.write_text(json.dumps(report, indent=1))
+        plot_tradeoff(report, RESULTS / "tradeoff.png")
+    print(f"done in {time.perf_counter() - t0:.0f} s; wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
