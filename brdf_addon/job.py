@@ -11,6 +11,8 @@ import dataclasses
 import pathlib
 import tomllib
 
+from .presets import PRESETS
+
 KNOWN_TOP = {"blend", "mesh", "object", "colmap", "out", "settings", "photo"}
 KNOWN_PHOTO = {"image", "camera", "light", "irradiance", "mask", "sun", "probe"}
 # the panel settings (``scene.brdf``) a job's [settings] table may hold, same names
@@ -133,15 +135,15 @@ def apply(job: Job, scene) -> None:
     settings.target = target
     if job.colmap is not None:
         import_colmap.import_cameras(scene, str(job.colmap))
-    for key, value in job.settings.items():
-        if key == "preset":
-            continue
+    # the preset first, then the job's own values over it (which makes it Custom)
+    order = sorted(job.settings.items(), key=lambda kv: kv[0] != "preset")
+    for key, value in order:
         try:
             setattr(settings, key, value)
         except (TypeError, ValueError) as error:
             raise JobError(f"setting {key} = {value!r}: {error}") from None
-    if "preset" in job.settings:
-        settings.preset = job.settings["preset"]
+    if "preset" in job.settings and set(job.settings) & set(PRESETS.get(settings.preset, {})):
+        settings.preset = "CUSTOM"
     settings.output_dir = str(job.out)
     for i, entry in enumerate(job.photos):
         try:
