@@ -43,8 +43,22 @@ lint: venv
 demo: venv
 	$(PY) bench/demo.py
 
-bench: venv
+# The benchmarks, plus their dev-only extras: Mitsuba 3 for the peer comparison
+# (requirements-bench.txt), whose CPU backend needs the system's libLLVM >= 17
+# (Debian 12: libllvm19, installed here with apt-get when missing).
+BENCH_STAMP := $(VENV)/.bench-installed
+
+bench: venv $(BENCH_STAMP)
 	$(PY) bench/run_all.py
+
+$(BENCH_STAMP): requirements-bench.txt $(STAMP)
+	@if ! ldconfig -p | grep -Eq 'libLLVM(-(1[7-9]|[2-9][0-9])\.so|\.so\.(1[7-9]|[2-9][0-9]))'; then \
+		echo "installing libllvm19 (Mitsuba's CPU backend needs libLLVM >= 17)"; \
+		if [ "$$(id -u)" = 0 ]; then apt-get update -qq && apt-get install -y libllvm19; \
+		else sudo apt-get update -qq && sudo apt-get install -y libllvm19; fi; \
+	fi
+	$(PY) -m pip install --disable-pip-version-check -r requirements-bench.txt
+	@touch $@
 
 # Installable extension zips, one per platform, into dist/ (brdf_reconstruct-<version>-linux_x64.zip,
 # ..._windows_x64.zip, ..._macos_arm64.zip) with scipy and pycolmap wheels for Python 3.11 and 3.13

@@ -427,7 +427,8 @@ def main(argv=None) -> int:
     for res in AXES["resolution"]:  # render (or find) the G-buffers once, in this process
         capture_arrays.gbuffers(resolution=res["resolution"])
     capture_arrays.gbuffers(resolution=BASE.resolution, scan_options=EXACT_SCAN)
-    path = RESULTS / "tradeoff.json"
+    tag = "_quick" if args.quick else ""
+    path = RESULTS / f"tradeoff{tag}.json"
     report = json.loads(path.read_text()) if path.is_file() else {}
     if args.part in ("all", "sweep"):
         points, axes = sweep_points(args.quick)
@@ -449,13 +450,13 @@ def main(argv=None) -> int:
     if args.part in ("all", "ablation"):
         ablation = run_ablation(args.quick)
         ablation["meta"] = _meta(argv)
-        (RESULTS / "ablation_bunny.json").write_text(json.dumps(ablation, indent=1))
-        plot_ablation(ablation, RESULTS / "ablation_bunny.png")
+        (RESULTS / f"ablation_bunny{tag}.json").write_text(json.dumps(ablation, indent=1))
+        plot_ablation(ablation, RESULTS / f"ablation_bunny{tag}.png")
         print(f"ablation: all constraints + KL / no constraints = "
               f"{ablation['ratio_all_kl_to_none']:.2f}")
     if "summary" in report:
         path.write_text(json.dumps(report, indent=1))
-        plot_tradeoff(report, RESULTS / "tradeoff.png")
+        plot_tradeoff(report, RESULTS / f"tradeoff{tag}.png")
     print(f"done in {time.perf_counter() - t0:.0f} s; wrote {path}")
     return 0
 
