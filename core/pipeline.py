@@ -93,8 +93,12 @@ class RegionResult:
     status: "ok" or "skipped" (then ``reason`` says why, in one sentence).
     counts: samples at each stage: ``observed`` (after the up-front removals,
     which are in ``removed_up_front``), ``removed`` per reliable stage,
-    ``reliable``. skipped_assumptions: per reliable stage, whether the data
-    rejected its assumption in this region (see ``ReliableSettings``).
+    ``reliable``, and ``saturated``: the region's pixels at or above the clip
+    level (removed up front). Where there are any, Eq. (2) (the brightest pixel
+    as the peak) is not applied: the peak was clipped, so the brightest pixel
+    left is on the highlight's edge; ``skipped_assumptions["brightest"]`` says so.
+    skipped_assumptions: per reliable stage, whether the data rejected its
+    assumption in this region (see ``ReliableSettings``).
     table: (3, 90, 90, 180) float64 of the chosen trial (None when skipped).
     candidates: every trial's table as float32, for the Cycles selection path.
     kl: (T,) KL score per trial, nats; winner: index of the chosen trial.
@@ -182,6 +186,22 @@ def region_views(inputs: Sequence[PhotoInput], region: int) -> list[selection.Vi
     return views
 
 
+def saturated_pixels(inputs: Sequence[PhotoInput], region: int,
+                     clip_level: float | None) -> int:
+    """Pixels of ``region`` (and of each photo's mask) with any channel at or above
+    ``clip_level``, over all photos; 0 when no clip level is set."""
+    if clip_level is None:
+        return 0
+    total = 0
+    for p in inputs:
+        inside = np.asarray(p.region) == region
+        if p.mask is not None:
+            inside &= np.asarray(p.mask, dtype=bool)
+        total += int(np.count_nonzero(inside & np.any(np.asarray(p.photo) >= clip_level,
+                                                      axis=-1)))
+    return total
+
+
 def run_region(
     basis: Basis,
     samples: observations.Samples,
@@ -201,16 +221,25 @@ def run_region(
         return result
     result.observed_pixels = np.column_stack([samples.view[sel], samples.pixel[sel]])
     t0 = time.perf_counter()
+    rel = settings.reliable
+    saturated = saturated_pixels(inputs, region, settings.observation.clip_level)
+    if saturated and rel.use_brightest:
+        # Eq. (2) takes the brightest pixel for the peak; with the highlight's core
+        # clipped (and removed), the brightest one left sits on the highlight's edge
+        rel = dataclasses.replace(rel, use_brightest=False)
     try:
-        cand, report = reliable.reliable_candidates(samples.subset(sel), settings.reliable)
+        cand, report = reliable.reliable_candidates(samples.subset(sel), rel)
     except ValueError as error:
         result.reason = f"region {region}: {error}"
         return result
     finally:
         result.timings["reliable"] = time.perf_counter() - t0
-    result.counts.update(removed=report.removed, reliable=report.kept)
+    result.counts.update(removed=report.removed, reliable=report.kept,
+                         saturated=int(saturated))
     result.reliable_pixels = np.column_stack([cand.view, cand.pixel])
-    result.skipped_assumptions = report.skipped
+    result.skipped_assumptions = dict(report.skipped)
+    if rel is not settings.reliable:
+        result.skipped_assumptions["brightest"] = [int(region)]
     if report.kept < settings.min_reliable_samples:
         result.reason = (f"region {region}: only {report.kept} reliable samples "
                          f"(fewer than {settings.min_reliable_samples})")
