@@ -182,7 +182,10 @@ def run_point(point: Point) -> dict:
         "point": dataclasses.asdict(point), "label": point.label(),
         "timings_s": timings, "total_s": float(sum(timings.values())),
         "pipeline_s": pipeline_s,
-        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "peak_rss_mb": _peak_rss_mb(),
+        # getrusage's max RSS survives fork + exec (it starts at the parent's peak): kept
+        # for comparison only
+        "ru_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         "counts": region.counts, "winner": int(winner),
         "sphere_error": metrics.sphere_error(table, truth),
         "brdf_log_rmse": metrics.brdf_log_rmse(table, truth),
@@ -195,6 +198,14 @@ def run_point(point: Point) -> dict:
         "normal_error_deg": arrays["normal_error_deg"].tolist(),
     }
     return out
+
+
+def _peak_rss_mb() -> float:
+    """This process's own peak resident memory (VmHWM of /proc/self/status), MB."""
+    for line in pathlib.Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024.0
+    return float("nan")
 
 
 def _pool():
