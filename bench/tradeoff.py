@@ -249,15 +249,19 @@ def sweep_points(quick: bool) -> tuple[list, dict]:
     return points, axes
 
 
+def _setting(point: dict) -> str:
+    """A point's settings without material and seed, as canonical JSON (tuples and
+    lists alike), for matching rows to configurations."""
+    return json.dumps({k: v for k, v in point.items() if k not in ("material", "seed")},
+                      sort_keys=True)
+
+
 def summarise(rows: list, configs: list) -> list:
     """Per configuration: medians over materials and seeds."""
     out = []
     for config in configs:
         key = dataclasses.asdict(config)
-        mine = [r for r in rows if {k: v for k, v in r["point"].items()
-                                    if k not in ("material", "seed")}
-                == {k: (list(v) if isinstance(v, tuple) else v) for k, v in key.items()
-                    if k not in ("material", "seed")}]
+        mine = [r for r in rows if _setting(r["point"]) == _setting(key)]
         if not mine:
             continue
         def med(name, mine=mine):
@@ -428,7 +432,7 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--part", choices=("all", "sweep", "presets", "ablation"),
+    parser.add_argument("--part", choices=("all", "sweep", "presets", "ablation", "summary"),
                         default="all")
     args = parser.parse_args(argv)
     RESULTS.mkdir(exist_ok=True)
@@ -449,11 +453,24 @@ def main(argv=None) -> int:
                       summary=summarise(rows, list(dict.fromkeys(configs))),
                       axes={a: [c.label() for c in cs] for a, cs in axes.items()})
         report["pareto"] = pareto(report["summary"])
+    if args.part == "summary":  # recompute the summary and plot from the stored rows
+        _, axes = sweep_points(args.quick)
+        configs = [c for cs in axes.values() for c in cs]
+        report["summary"] = summarise(report["rows"], list(dict.fromkeys(configs)))
+        report["pareto"] = pareto(report["summary"])
     if args.part in ("all", "presets"):
         configs = preset_points(args.quick)
         points = [dataclasses.replace(c, material=m, seed=s) for c in configs.values()
                   for m in MATERIALS for s in SEEDS]
-        rows = _run_all(points, "presets")
+        # a preset that is a point of the sweep is not run again: its rows are reused
+        def key(p):
+            return json.dumps(dataclasses.asdict(p), sort_keys=True)
+
+        done = {json.dumps(r["point"], sort_keys=True): r for r in report.get("rows", [])}
+        todo = [p for p in points if key(p) not in done]
+        ran = {key(p): r for p, r in zip(todo, _run_all(todo, "presets"), strict=True)}
+        rows = [done.get(key(p)) or ran[key(p)] for p in points]
+        report["preset_rows_reused"] = len(points) - len(todo)
         summary = summarise(rows, list(configs.values()))
         report["presets"] = {name: s for name, s in zip(configs, summary, strict=True)}
         report["preset_rows"] = rows

@@ -12,7 +12,7 @@ import json
 import bpy
 from bpy.types import Panel, UIList
 
-from . import props
+from . import presets
 
 
 class BRDF_UL_photos(UIList):
@@ -126,7 +126,7 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
         s = context.scene.brdf
         layout.prop(s, "preset")
         if s.preset != "CUSTOM":
-            layout.label(text=props.PRESET_NOTE, icon="INFO")
+            layout.label(text=presets.HINTS[s.preset], icon="INFO")
         col = layout.column(heading="Reliable Region")
         col.prop(s, "use_curvature")
         sub = col.column()

@@ -25,7 +25,7 @@ from bpy.props import (
 from bpy.types import PropertyGroup
 
 from .job import SETTING_NAMES
-from .presets import PRESETS
+from .presets import HINTS, PRESETS
 
 # Blender 4.5+ warns on "//" paths unless the property says it takes them
 PATH = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set()
@@ -33,8 +33,6 @@ PATH = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (4, 5, 0) else set
 # Presets: brdf_addon/presets.py (plain data, measured by bench/tradeoff.py). The
 # settings' defaults are the Balanced preset, the default preset.
 _BALANCED = PRESETS["BALANCED"]
-PRESET_NOTE = ("Provisional presets: the speed/accuracy benchmark that will set them "
-               "is not done yet")
 
 LIGHT_SOURCES = [
     ("SUN_OBJECT", "Sun Object", "Direction of a Sun light object in the scene"),
@@ -159,8 +157,8 @@ class BRDFSettings(PropertyGroup):
     # sampling and trials (paper Sec. 3.2)
     preset: EnumProperty(
         name="Preset", default="BALANCED", update=_apply_preset,
-        items=[("FAST", "Fast", PRESET_NOTE), ("BALANCED", "Balanced", PRESET_NOTE),
-               ("ACCURATE", "Accurate", PRESET_NOTE), ("CUSTOM", "Custom", "Own values")])
+        items=[("FAST", "Fast", HINTS["FAST"]), ("BALANCED", "Balanced", HINTS["BALANCED"]),
+               ("ACCURATE", "Accurate", HINTS["ACCURATE"]), ("CUSTOM", "Custom", "Own values")])
     samples: IntProperty(name="Samples", default=_BALANCED["samples"], min=1, soft_max=200,
                          description="Condition-optimal directions per trial (paper: 6)")
     trials: IntProperty(name="Trials", default=_BALANCED["trials"], min=1, soft_max=128,
