@@ -25,3 +25,18 @@ def heldout_tables():
     from brdf_reconstruct.core import database
 
     return {s["name"]: database.make_table(s) for s in database.heldout_specs()}
+
+
+@pytest.fixture
+def registered_scene():
+    """An empty factory scene with the add-on registered (unregistered afterwards).
+    Imports bpy only when a test asks for it."""
+    bpy = pytest.importorskip("bpy")
+    import brdf_reconstruct
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    brdf_reconstruct.register()
+    try:
+        yield bpy.context.scene
+    finally:
+        brdf_reconstruct.unregister()

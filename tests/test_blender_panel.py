@@ -12,7 +12,6 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-import brdf_reconstruct  # noqa: E402
 from brdf_reconstruct.brdf_addon import panel  # noqa: E402
 
 
@@ -91,13 +90,8 @@ def _check_icon(icon):
 
 
 @pytest.fixture
-def scene():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    brdf_reconstruct.register()
-    try:
-        yield bpy.context.scene
-    finally:
-        brdf_reconstruct.unregister()
+def scene(registered_scene):
+    return registered_scene
 
 
 def _draw_all(context):

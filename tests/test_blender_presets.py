@@ -8,19 +8,13 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-import brdf_reconstruct  # noqa: E402
 from brdf_reconstruct.brdf_addon import job as job_module  # noqa: E402
 from brdf_reconstruct.brdf_addon.presets import PRESETS  # noqa: E402
 
 
 @pytest.fixture
-def scene():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    brdf_reconstruct.register()
-    try:
-        yield bpy.context.scene
-    finally:
-        brdf_reconstruct.unregister()
+def scene(registered_scene):
+    return registered_scene
 
 
 def _values(settings, keys):
