@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 import os
 import pathlib
+import sys
 
 import bpy
 import numpy as np
@@ -46,6 +47,12 @@ def load_ground_truth(path: str | pathlib.Path, name: str = "GroundTruth"):
         raise ValueError(f"{path.name} holds {len(new)} meshes, not one")
     obj = new[0]
     obj.name = name
+    return _unit_smooth(obj)
+
+
+def _unit_smooth(obj):
+    """Bake ``obj``'s transform into its vertices, centred at the origin with unit
+    radius (bounding-box centre, farthest vertex at 1), every face smooth."""
     mesh = obj.data
     co = np.zeros(len(mesh.vertices) * 3)
     mesh.vertices.foreach_get("co", co)
@@ -79,16 +86,7 @@ def default_ground_truth(name: str = "GroundTruth"):
     obj.data = baked
     bpy.data.meshes.remove(old)
     obj.name = name
-    co = np.zeros(len(baked.vertices) * 3)
-    baked.vertices.foreach_get("co", co)
-    co = co.reshape(-1, 3)
-    centre = 0.5 * (co.min(axis=0) + co.max(axis=0))
-    baked.vertices.foreach_set("co", ((co - centre) / np.max(np.linalg.norm(
-        co - centre, axis=1))).ravel())
-    baked.update()
-    for polygon in baked.polygons:
-        polygon.use_smooth = True
-    return obj
+    return _unit_smooth(obj)
 
 
 def _identity():
@@ -216,6 +214,34 @@ def render_lit_photos(truth, cameras, table, light, folder, resolution, irradian
             bpy.data.images.remove(image)
 
 
+def build_scene(sparse_folder, resolution=(240, 180), n_views: int = 6, seed: int = 0,
+                scan_options: dict | None = None, mesh=None, focal_px: float | None = None,
+                points=None):
+    """The capture's Blender objects in a new empty scene: ``(truth, scan, cameras)``.
+
+    truth: the ground truth (``mesh``, default :func:`default_ground_truth`);
+    scan: its degraded copy (:func:`photogrammetry_mesh`, seeded); cameras: one per
+    view of :func:`camera_ring`, from the COLMAP model written to ``sparse_folder``
+    (PINHOLE, ``focal_px`` default 1.25 x the width; ``points`` (N, 3), default up
+    to 2000 of the truth's vertices) and imported by the extension's own COLMAP
+    importer. The points set the scene scale the importer derives the cameras'
+    clip range from, so they change the G-buffers in the last float digits.
+    """
+    from brdf_reconstruct.operators import import_colmap
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    _say("loading the ground-truth mesh and degrading it into the scan")
+    truth = load_ground_truth(mesh) if mesh else default_ground_truth()
+    scan = photogrammetry_mesh(truth, seed=seed, **(scan_options or {}))
+    if points is None:
+        co = np.zeros(len(truth.data.vertices) * 3)
+        truth.data.vertices.foreach_get("co", co)
+        points = co.reshape(-1, 3)[:: max(1, len(co) // 3 // 2000)]
+    focal_px = 1.25 * resolution[0] if focal_px is None else focal_px
+    sparse = write_colmap(sparse_folder, camera_ring(n_views), *resolution, focal_px, points)
+    return truth, scan, import_colmap.import_cameras(bpy.context.scene, sparse)
+
+
 def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
              light=(0.35, -0.45, 0.82), resolution=(160, 120), focal_px: float | None = None,
              seed: int = 0, scan_options: dict | None = None) -> pathlib.Path:
@@ -226,21 +252,11 @@ def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
     focal_px: default 1.25 x the width, so the object fills the frame alike at
     any resolution. Resets Blender to an empty scene. Returns the job file's path."""
     from brdf_reconstruct.core import merl
-    from brdf_reconstruct.operators import import_colmap
 
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    _say("loading the ground-truth mesh and degrading it into the scan")
-    truth = load_ground_truth(mesh) if mesh else default_ground_truth()
-    scan = photogrammetry_mesh(truth, seed=seed, **(scan_options or {}))
-    poses = camera_ring(n_views)
-    co = np.zeros(len(truth.data.vertices) * 3)
-    truth.data.vertices.foreach_get("co", co)
-    focal_px = 1.25 * resolution[0] if focal_px is None else focal_px
-    sparse = write_colmap(folder / "sparse" / "0", poses, *resolution, focal_px,
-                          co.reshape(-1, 3)[:: max(1, len(co) // 3 // 2000)])
-    cameras = import_colmap.import_cameras(bpy.context.scene, sparse)
+    truth, scan, cameras = build_scene(folder / "sparse" / "0", resolution, n_views, seed,
+                                       scan_options, mesh, focal_px)
     _say(f"rendering {len(lit_views)} lit photos with the true table (Cycles)")
     photos = render_lit_photos(truth, [cameras[i] for i in lit_views], table, light,
                                folder / "lit", resolution)
@@ -260,6 +276,45 @@ def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
     return job
 
 
+def default_subject() -> str:
+    """"bunny" when :data:`DATA` holds the Stanford bunny, else "suzanne" (the
+    fallback of :func:`default_ground_truth`)."""
+    return "bunny" if (DATA / "stanford-bunny.obj").is_file() else "suzanne"
+
+
+def cache_folder(material: str, views: int, lit: int, resolution, seed: int) -> pathlib.Path:
+    """Where the benchmarks and the demo keep the capture of these settings
+    (``<cache>/captures/<subject>_<material>_...``); see :func:`command`."""
+    from brdf_reconstruct.core import basis
+
+    w, h = resolution
+    return (basis.default_cache_dir() / "captures"
+            / f"{default_subject()}_{material}_{views}v{lit}l_{w}x{h}_s{seed}")
+
+
+def command(folder, material: str, views: int, lit: int, resolution, seed: int) -> list:
+    """The command line that writes that capture to ``folder`` (a fresh process, so
+    that the caller's Blender scene is untouched)."""
+    w, h = resolution
+    return [sys.executable, str(pathlib.Path(__file__).resolve()), str(folder),
+            "--material", material, "--views", str(views), "--lit", str(lit),
+            "--width", str(w), "--height", str(h), "--seed", str(seed)]
+
+
+def preset_job(folder, preset: str, out=None) -> pathlib.Path:
+    """A copy of ``folder/job.toml`` with ``preset`` in its ``[settings]`` (and ``out``
+    if given), as ``folder/job_<preset>.toml``: same folder, so the job's relative
+    paths still hold. Returns its path."""
+    folder = pathlib.Path(folder)
+    text = (folder / "job.toml").read_text()
+    text = text.replace("[settings]\n", f'[settings]\npreset = "{preset}"\n', 1)
+    if out is not None:
+        text = text.replace('out = "out"', f'out = "{pathlib.Path(out).as_posix()}"', 1)
+    job = folder / f"job_{preset.lower()}.toml"
+    job.write_text(text)
+    return job
+
+
 def _say(message: str) -> None:
     """A progress line (``capture: ...``) that callers such as ``make demo`` show."""
     print(f"capture: {message}", flush=True)
@@ -268,7 +323,6 @@ def _say(message: str) -> None:
 def main(argv=None) -> int:
     """``python bench/capture.py OUT --material NAME ...``: write a capture to OUT."""
     import argparse
-    import sys
 
     from brdf_reconstruct.core import database
 

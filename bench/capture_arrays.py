@@ -62,13 +62,16 @@ def gbuffers(resolution=(240, 180), n_views: int = 6, lit_views=(0, 2, 4), light
     wall seconds of the Cycles G-buffer renders (0 when read from the cache).
     Resets Blender to an empty scene when it has to render.
     """
+    import capture
+
     from brdf_reconstruct.core import basis
 
     light = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
     mesh = pathlib.Path(mesh) if mesh else None
     key = _key(resolution=list(resolution), n_views=n_views, lit_views=list(lit_views),
                light=light.round(9).tolist(), seed=seed, scan_options=scan_options or {},
-               mesh=mesh.name if mesh else "stanford-bunny.obj", version=2)
+               mesh=mesh.name if mesh else {"bunny": "stanford-bunny.obj"}.get(
+                   capture.default_subject(), "suzanne"), version=2)
     path = basis.default_cache_dir() / "captures" / f"arrays_{key}.npz"
     if cache and path.is_file():
         with np.load(path) as data:
@@ -86,24 +89,15 @@ def gbuffers(resolution=(240, 180), n_views: int = 6, lit_views=(0, 2, 4), light
 
 def build_scene(resolution=(240, 180), n_views: int = 6, seed: int = 0,
                 scan_options: dict | None = None, mesh=None):
-    """The capture's Blender objects in a new empty scene: ``(truth, scan, cameras)``
-    (the ground-truth bunny, its degraded scan, and one camera per view of the
-    COLMAP ring, imported through the extension's COLMAP importer). The same
-    arguments give the same scan (seeded) as :func:`gbuffers` used."""
-    import bpy
+    """``capture.build_scene`` with its COLMAP model in a temporary folder:
+    ``(truth, scan, cameras)``; the same arguments give the same scan as
+    :func:`gbuffers` rendered."""
     import capture
 
-    from brdf_reconstruct.operators import import_colmap
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    truth = capture.load_ground_truth(mesh or capture.DATA / "stanford-bunny.obj")
-    scan = capture.photogrammetry_mesh(truth, seed=seed, **(scan_options or {}))
-    poses = capture.camera_ring(n_views)
-    with tempfile.TemporaryDirectory() as tmp:
-        sparse = capture.write_colmap(pathlib.Path(tmp) / "sparse", poses, *resolution,
-                                      1.25 * resolution[0], np.zeros((1, 3)))
-        cameras = import_colmap.import_cameras(bpy.context.scene, sparse)
-    return truth, scan, cameras
+    with tempfile.TemporaryDirectory() as tmp:  # one point at the origin: the model the
+        # cached arrays and bench/results were rendered with
+        return capture.build_scene(pathlib.Path(tmp) / "sparse", resolution, n_views, seed,
+                                   scan_options, mesh, points=np.zeros((1, 3)))
 
 
 def _render(resolution, n_views, lit_views, light, seed, scan_options, mesh) -> dict:

@@ -58,12 +58,11 @@ def main(argv=None) -> int:
         return 2
     import capture
 
-    bunny = capture.DATA / "stanford-bunny.obj"
-    subject = "bunny"
-    if not bunny.is_file():  # the capture falls back to Suzanne, which needs more pixels
-        print(f"note: {bunny} not found (set BRDF_SHARED_DATA to its folder); the capture "
-              "uses Blender's Suzanne instead, 8 views, 4 lit", flush=True)
-        subject = "suzanne"
+    subject = capture.default_subject()
+    if subject != "bunny":  # the capture falls back to Suzanne, which needs more pixels
+        print(f"note: {capture.DATA / 'stanford-bunny.obj'} not found (set BRDF_SHARED_DATA "
+              "to its folder); the capture uses Blender's Suzanne instead, 8 views, 4 lit",
+              flush=True)
         args.views, args.lit = max(args.views, 8), max(args.lit, 4)
     out = pathlib.Path(args.out).resolve()
     if out.exists():
@@ -78,19 +77,15 @@ def main(argv=None) -> int:
     print(f"      {B.n_components} components over {len(B.cells)} cells "
           f"({time.perf_counter() - t0:.0f} s)", flush=True)
 
-    key = (f"{subject}_{args.material}_{args.views}v{args.lit}l_{args.width}x{args.height}"
-           f"_s{args.seed}")
-    cache = basis.default_cache_dir() / "captures" / key
-    job = cache / "job.toml"
+    settings = (args.material, args.views, args.lit, (args.width, args.height), args.seed)
+    cache = capture.cache_folder(*settings)
     t1 = time.perf_counter()
-    if job.is_file():
+    if (cache / "job.toml").is_file():
         print(f"[2/4] reusing the capture in {cache}", flush=True)
     else:
         print(f"[2/4] generating the capture in {cache} (Cycles)", flush=True)
-        code = _run([sys.executable, str(HERE / "capture.py"), str(cache), "--material",
-                     args.material, "--views", str(args.views), "--lit", str(args.lit),
-                     "--width", str(args.width), "--height", str(args.height),
-                     "--seed", str(args.seed)], out / "logs" / "capture.log", ("capture:",))
+        code = _run(capture.command(cache, *settings), out / "logs" / "capture.log",
+                    ("capture:",))
         if code != 0:
             print(f"error: the capture failed; see {out / 'logs' / 'capture.log'}",
                   file=sys.stderr)
@@ -98,13 +93,7 @@ def main(argv=None) -> int:
     capture_s = time.perf_counter() - t1
 
     print(f"[3/4] the batch job, as a user runs it ({args.preset.title()} preset)", flush=True)
-    user_job = out / "job.toml"
-    text = job.read_text().replace('out = "out"', f'out = "{out.as_posix()}"')
-    text = text.replace("[settings]\n", f'[settings]\npreset = "{args.preset}"\n')
-    for folder in ("lit", "sparse"):  # the job's paths are relative to its own folder
-        text = text.replace(f'"{folder}/', f'"{(cache / folder).as_posix()}/')
-    text = text.replace('mesh = "scan.ply"', f'mesh = "{(cache / "scan.ply").as_posix()}"')
-    user_job.write_text(text)
+    user_job = capture.preset_job(cache, args.preset, out=out)
     print(f"      .venv/bin/python -m brdf_reconstruct.brdf_addon.batch {user_job}", flush=True)
     t2 = time.perf_counter()
     code = _run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch", str(user_job)],

@@ -5,7 +5,7 @@ For every held-out material (``core.database.heldout_specs``):
 1. The bunny capture of the demo (``bench/capture.py``: 6 views, 3 lit photos,
    240 x 180, seed 0), generated once into
    ``basis.default_cache_dir() / "captures" / <key>`` (the key of
-   ``capture_demo.py``) and reused after.
+   ``bench/demo.py``, ``capture.cache_folder``) and reused after.
 2. Ours, as a user runs it: ``python -m brdf_reconstruct.brdf_addon.batch`` on a
    copy of the capture's ``job.toml`` with ``preset = "BALANCED"`` under
    ``[settings]``; the table is read back from ``out/brdf_0.binary``. Timed: the
@@ -51,43 +51,27 @@ QUICK_MATERIALS = ("heldout_gold_medium", "heldout_rough_plastic")
 
 def capture(material: str, views: int = 6, lit: int = 3, width: int = 240, height: int = 180,
             seed: int = 0) -> tuple[pathlib.Path, bool]:
-    """The capture folder of ``material`` (generated if missing) and whether it was
-    generated now. Same key and settings as ``capture_demo.py``."""
-    from brdf_reconstruct.core import basis
+    """The capture folder of ``material`` (generated if missing; the demo's cache,
+    ``capture.cache_folder``) and whether it was generated now."""
+    import capture as capture_module
 
-    key = f"{material}_{views}v{lit}l_{width}x{height}_s{seed}"
-    folder = basis.default_cache_dir() / "captures" / key
+    settings = (material, views, lit, (width, height), seed)
+    folder = capture_module.cache_folder(*settings)
     if (folder / "job.toml").is_file():
         return folder, False
-    subprocess.run([sys.executable, str(HERE / "capture.py"), str(folder), "--material",
-                    material, "--views", str(views), "--lit", str(lit), "--width", str(width),
-                    "--height", str(height), "--seed", str(seed)], check=True,
+    subprocess.run(capture_module.command(folder, *settings), check=True,
                    stdout=subprocess.DEVNULL)
     return folder, True
-
-
-def balanced_job(folder: pathlib.Path) -> pathlib.Path:
-    """A copy of the capture's ``job.toml`` with ``preset = "BALANCED"`` in its
-    ``[settings]`` (added, or replacing a preset line); same folder, so the
-    relative paths and ``out = "out"`` are unchanged."""
-    lines = (folder / "job.toml").read_text().splitlines()
-    lines = [x for x in lines if not x.strip().startswith("preset")]
-    if "[settings]" in (x.strip() for x in lines):
-        at = [x.strip() for x in lines].index("[settings]") + 1
-        lines.insert(at, 'preset = "BALANCED"')
-    else:
-        lines += ["", "[settings]", 'preset = "BALANCED"']
-    job = folder / "job_balanced.toml"
-    job.write_text("\n".join(lines) + "\n")
-    return job
 
 
 def run_ours(folder: pathlib.Path) -> dict:
     """Run the batch entry on the Balanced job; table, wall time and the report's
     stage timings (seconds)."""
+    import capture as capture_module
+
     from brdf_reconstruct.core import merl
 
-    job = balanced_job(folder)
+    job = capture_module.preset_job(folder, "BALANCED")
     out = folder / "out"
     if out.exists():
         shutil.rmtree(out)

@@ -16,11 +16,11 @@ import capture  # noqa: E402
 from brdf_reconstruct.operators import import_colmap  # noqa: E402
 
 BUNNY = capture.DATA / "stanford-bunny.obj"
-needs_bunny = pytest.mark.skipif(not BUNNY.is_file(), reason=f"{BUNNY} not found")
 
 
 @pytest.fixture(scope="module")
 def bunny():
+    """The bunny and its scan; tests that use it skip without ../shared/data."""
     if not BUNNY.is_file():
         pytest.skip(f"{BUNNY} not found")
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -35,7 +35,6 @@ def _co(obj):
     return co.reshape(-1, 3)
 
 
-@needs_bunny
 def test_ground_truth_is_unit_sized_at_the_origin(bunny):
     truth, _ = bunny
     co = _co(truth)
@@ -44,7 +43,6 @@ def test_ground_truth_is_unit_sized_at_the_origin(bunny):
     assert np.max(np.linalg.norm(co, axis=1)) == pytest.approx(1.0, abs=1e-6)
 
 
-@needs_bunny
 def test_scan_is_decimated_blunted_and_seeded(bunny):
     truth, scan = bunny
     assert 0.15 < len(scan.data.polygons) / len(truth.data.polygons) < 0.25
@@ -55,7 +53,6 @@ def test_scan_is_decimated_blunted_and_seeded(bunny):
     assert not np.array_equal(_co(other), _co(scan))
 
 
-@needs_bunny
 def test_normal_error_is_like_a_photogrammetry_mesh(bunny, tmp_path):
     truth, scan = bunny
     poses = capture.camera_ring(3)
@@ -68,7 +65,6 @@ def test_normal_error_is_like_a_photogrammetry_mesh(bunny, tmp_path):
     assert 1.0 < median < 15.0 and p90 > median
 
 
-@needs_bunny
 def test_colmap_model_of_the_ring_imports_with_its_poses(bunny, tmp_path):
     truth, _ = bunny
     poses = capture.camera_ring(7)
