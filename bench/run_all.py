@@ -2,7 +2,8 @@
 
 About 3 to 4 hours on the 2-core machine: reliable_bench (~45 min), tradeoff
 (~1 h), heldout with the Mitsuba peer (~20 min), scaling, extremes, SfM, core
-and the Cycles KL samples. ``--quick`` runs the reduced version of each.
+the Cycles KL samples and the sphere probe (~2 min). ``--quick`` runs the reduced
+version of each.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 # each in its own process: they set their own thread pinning and Blender scenes
 SCRIPTS = ("core_bench.py", "reliable_bench.py", "cycles_kl_bench.py", "tradeoff.py",
-           "extremes_bench.py", "scaling_bench.py", "sfm.py", "heldout_bench.py")
+           "extremes_bench.py", "scaling_bench.py", "sfm.py", "heldout_bench.py",
+           "probe_bench.py")
 
 
 def main() -> int:

@@ -13,8 +13,15 @@ import tomllib
 
 from .presets import PRESETS
 
-KNOWN_TOP = {"blend", "mesh", "object", "colmap", "out", "settings", "photo"}
-KNOWN_PHOTO = {"image", "camera", "light", "irradiance", "mask", "sun", "probe"}
+KNOWN_TOP = {"blend", "mesh", "mesh_up", "object", "colmap", "up", "out", "settings", "photo"}
+KNOWN_PHOTO = {"image", "camera", "light", "irradiance", "mask", "sun", "probe", "color_space",
+               "exposure", "grey_card", "reference_region", "silhouette_margin"}
+KNOWN_SUN = {"date", "utc_offset", "latitude", "longitude", "north_offset"}
+KNOWN_PROBE = {"image", "center", "radius"}
+# mesh files are imported with their coordinates kept (a photogrammetry mesh shares
+# its cameras' frame); mesh_up = "Y" converts a Y-up file to Blender's Z-up instead
+MESH_AXES = {"Z": {"forward_axis": "Y", "up_axis": "Z"},
+             "Y": {"forward_axis": "NEGATIVE_Z", "up_axis": "Y"}}
 # the panel settings (``scene.brdf``) a job's [settings] table may hold, same names
 SETTING_NAMES = (
     "use_curvature", "curvature_threshold", "use_monotonicity", "monotonicity_tolerance",
@@ -38,6 +45,8 @@ class Job:
     mesh: pathlib.Path | None = None
     object: str | None = None
     colmap: pathlib.Path | None = None
+    mesh_up: str = "Z"
+    up: list | str | None = None
     settings: dict = dataclasses.field(default_factory=dict)
     photos: list = dataclasses.field(default_factory=list)
 
@@ -79,6 +88,15 @@ def load(path) -> Job:
         raise JobError("the job needs a mesh file or an object name")
     if "colmap" in data:
         job.colmap = _file(base, data["colmap"], "colmap")
+    job.mesh_up = str(data.get("mesh_up", "Z")).upper()
+    if job.mesh_up not in MESH_AXES:
+        raise JobError(f"mesh_up must be \"Z\" (kept as is) or \"Y\", got {data['mesh_up']!r}")
+    if "up" in data:
+        up = data["up"]
+        if up != "cameras" and not (isinstance(up, list) and len(up) == 3
+                                    and all(isinstance(x, int | float) for x in up)):
+            raise JobError("up must be [x, y, z] or \"cameras\"")
+        job.up = up
     job.settings = dict(data.get("settings", {}))
     unknown = set(job.settings) - set(SETTING_NAMES)
     if unknown:
@@ -90,8 +108,11 @@ def load(path) -> Job:
         unknown = set(entry) - KNOWN_PHOTO
         if unknown:
             raise JobError(f"photo {i + 1} has unknown keys: {', '.join(sorted(unknown))}")
-        if "image" not in entry or "camera" not in entry:
-            raise JobError(f"photo {i + 1} needs image and camera")
+        if "image" not in entry:
+            if "camera" in entry:
+                raise JobError(f"camera {entry['camera']} has no photo: give photo {i + 1} "
+                               "an image")
+            raise JobError(f"photo {i + 1} needs an image")
         photo = dict(entry)
         for kind in ("sun", "probe"):  # a [photo.sun] or [photo.probe] table is the light
             if kind in photo:
@@ -99,8 +120,27 @@ def load(path) -> Job:
                     raise JobError(f"photo {i + 1} has both light and [photo.{kind}]")
                 photo["light"] = {kind: photo.pop(kind)}
         photo["image"] = _file(base, entry["image"], f"photo {i + 1} image")
-        if "mask" in entry:
-            photo["mask"] = _file(base, entry["mask"], f"photo {i + 1} mask")
+        for key in ("mask", "grey_card", "reference_region"):
+            if key in entry:
+                photo[key] = _file(base, entry[key], f"photo {i + 1} {key.replace('_', ' ')}")
+        if "grey_card" in entry and "reference_region" in entry:
+            raise JobError(f"photo {i + 1} has both grey_card and reference_region")
+        space = str(entry.get("color_space", "auto")).upper()
+        if space not in ("AUTO", "SRGB", "LINEAR"):
+            raise JobError(f"photo {i + 1}: color_space must be auto, srgb or linear")
+        photo["color_space"] = space
+        margin = entry.get("silhouette_margin", 0)
+        if not (isinstance(margin, int) and margin >= 0):
+            raise JobError(f"photo {i + 1}: silhouette_margin must be a whole number of pixels")
+        if "exposure" in entry and not (isinstance(entry["exposure"], int | float)
+                                        and entry["exposure"] > 0):
+            raise JobError(f"photo {i + 1}: exposure must be a positive number")
+        for kind, known in (("sun", KNOWN_SUN), ("probe", KNOWN_PROBE)):
+            table = photo.get("light", {}).get(kind) if isinstance(photo.get("light"),
+                                                                   dict) else None
+            if table is not None and set(table) - known:
+                raise JobError(f"photo {i + 1} [photo.{kind}] has unknown keys: "
+                               + ", ".join(sorted(set(table) - known)))
         light = photo.get("light")
         if isinstance(light, dict) and "probe" in light:
             light = dict(light)
@@ -122,7 +162,7 @@ def apply(job: Job, scene) -> None:
         before = set(bpy.data.objects)
         importer = {".ply": bpy.ops.wm.ply_import, ".obj": bpy.ops.wm.obj_import,
                     ".stl": bpy.ops.wm.stl_import}[job.mesh.suffix.lower()]
-        importer(filepath=str(job.mesh))
+        importer(filepath=str(job.mesh), **MESH_AXES[job.mesh_up])
         new = [o for o in bpy.data.objects if o not in before and o.type == "MESH"]
         if len(new) != 1:
             raise JobError(f"mesh {job.mesh.name} holds {len(new)} mesh objects, not one")
@@ -135,6 +175,12 @@ def apply(job: Job, scene) -> None:
     settings.target = target
     if job.colmap is not None:
         import_colmap.import_cameras(scene, str(job.colmap))
+    if job.up == "cameras":
+        from ..operators import light as light_ops
+
+        settings.scene_up = light_ops.up_from_cameras(scene)[0].tolist()
+    elif job.up is not None:
+        settings.scene_up = tuple(float(x) for x in job.up)
     # the preset first, then the job's own values over it (which makes it Custom)
     order = sorted(job.settings.items(), key=lambda kv: kv[0] != "preset")
     for key, value in order:
@@ -147,28 +193,40 @@ def apply(job: Job, scene) -> None:
     settings.output_dir = str(job.out)
     for i, entry in enumerate(job.photos):
         try:
-            camera = _camera(scene, entry["camera"])
+            camera = _camera(scene, entry.get("camera"), entry["image"].name)
         except ValueError as error:
             raise JobError(f"photo {i + 1}: {error}") from None
         photo = settings.photos.add()
         photo.name = entry["image"].name
         photo.filepath = str(entry["image"])
         photo.camera = camera
+        photo.color_space = entry["color_space"]
+        photo.exposure = float(entry.get("exposure", 0.0))
+        photo.silhouette_margin = int(entry.get("silhouette_margin", 0))
         if "mask" in entry:
             photo.mask_path = str(entry["mask"])
+        for key, kind in (("grey_card", "CARD"), ("reference_region", "SCAN")):
+            if key in entry:
+                photo.reference_kind, photo.reference_mask_path = kind, str(entry[key])
         if "irradiance" in entry:
             e = entry["irradiance"]
             photo.irradiance = (e, e, e) if isinstance(e, int | float) else tuple(e)
         _set_light(scene, photo, entry.get("light"), i)
 
 
-def _camera(scene, name: str):
-    """A camera by object name, else by COLMAP image name (exact, then stem)."""
+def _camera(scene, name: str | None, image_name: str):
+    """A camera by object name, else by COLMAP image name (exact, then stem); with
+    no name, the camera matching the photo's own file name."""
+    from ..operators.photos import match_camera
+
+    if name is None:
+        try:
+            return match_camera(scene, image_name)
+        except ValueError as error:
+            raise ValueError(f"{error}; give its camera") from None
     obj = scene.objects.get(name)
     if obj is not None and obj.type == "CAMERA":
         return obj
-    from ..operators.photos import match_camera
-
     try:
         return match_camera(scene, name)
     except ValueError:
@@ -191,15 +249,35 @@ def _set_light(scene, photo, light, i: int) -> None:
             raise JobError(f"photo {i + 1}: light must be [x, y, z]")
         photo.light_source, photo.direction = "DIRECTION", tuple(float(x) for x in light)
     elif isinstance(light, dict) and "sun" in light:
+        # date, latitude and longitude left out: from the photo's EXIF and GPS
         sun = light["sun"]
         photo.light_source = "SUN_POSITION"
-        photo.when = str(sun["date"])
-        photo.utc_offset = float(sun.get("utc_offset", 0.0))
-        photo.latitude, photo.longitude = float(sun["latitude"]), float(sun["longitude"])
+        photo.time_from_exif = "date" not in sun
+        if "date" in sun:
+            photo.when = str(sun["date"])
+        if "utc_offset" in sun:
+            photo.utc_offset = float(sun["utc_offset"])
+        photo.place_from_exif = "latitude" not in sun and "longitude" not in sun
+        if not photo.place_from_exif:
+            if "latitude" not in sun or "longitude" not in sun:
+                raise JobError(f"photo {i + 1}: [photo.sun] needs both latitude and "
+                               "longitude (or neither, to take them from GPS EXIF)")
+            photo.latitude, photo.longitude = float(sun["latitude"]), float(sun["longitude"])
         photo.north_offset = float(sun.get("north_offset", 0.0))
     elif isinstance(light, dict) and "probe" in light:
+        probe = light["probe"]
         photo.light_source = "PROBE"
-        photo.probe_path = str(light["probe"]["image"])
+        photo.probe_path = str(probe["image"])
+        if ("center" in probe) != ("radius" in probe):
+            raise JobError(f"photo {i + 1}: [photo.probe] needs both center and radius "
+                           "(or neither, to find the sphere automatically)")
+        if "center" in probe:
+            center, radius = probe["center"], probe["radius"]
+            if not (isinstance(center, list) and len(center) == 2
+                    and isinstance(radius, int | float) and radius > 0):
+                raise JobError(f"photo {i + 1}: probe center must be [x, y] and radius a "
+                               "positive number of pixels")
+            photo.probe_center, photo.probe_radius = tuple(map(float, center)), float(radius)
     else:
         raise JobError(f"photo {i + 1}: light must be [x, y, z], a Sun name, "
                        "a sun table or a probe table")

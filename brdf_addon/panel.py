@@ -82,8 +82,14 @@ class BRDF_PT_photos(_BRDFPanel, Panel):
             photo = s.photos[s.active_photo]
             layout.prop(photo, "filepath")
             layout.prop(photo, "camera")
+            layout.prop(photo, "color_space")
+            layout.prop(photo, "exposure")
             layout.prop(photo, "mask_path")
+            layout.prop(photo, "silhouette_margin")
             layout.prop(photo, "irradiance")
+            layout.prop(photo, "reference_kind")
+            if photo.reference_kind != "NONE":
+                layout.prop(photo, "reference_mask_path")
         elif not len(s.photos):
             layout.label(text="Add the photos taken under one distant light")
 
@@ -108,10 +114,23 @@ class BRDF_PT_light(_BRDFPanel, Panel):
             layout.prop(photo, "direction")
         elif photo.light_source == "PROBE":
             layout.prop(photo, "probe_path")
+            layout.prop(photo, "probe_radius")
+            if photo.probe_radius > 0:
+                layout.prop(photo, "probe_center")
             layout.operator("brdf.light_from_probe", icon="SHADING_RENDERED")
         else:
-            for name in ("when", "utc_offset", "latitude", "longitude", "north_offset"):
-                layout.prop(photo, name)
+            layout.prop(photo, "time_from_exif")
+            if not photo.time_from_exif:
+                layout.prop(photo, "when")
+            layout.prop(photo, "utc_offset")
+            layout.prop(photo, "place_from_exif")
+            if not photo.place_from_exif:
+                layout.prop(photo, "latitude")
+                layout.prop(photo, "longitude")
+            layout.prop(photo, "north_offset")
+            row = layout.row()
+            row.prop(s, "scene_up")
+            layout.operator("brdf.up_from_cameras", icon="ORIENTATION_GLOBAL")
             layout.operator("brdf.light_from_time", icon="TIME")
 
 

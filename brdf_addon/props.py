@@ -43,6 +43,20 @@ LIGHT_SOURCES = [
 ]
 
 
+COLOR_SPACES = [
+    ("AUTO", "Auto", "Float EXR/TIFF and 16/32-bit TIFF are linear; 8/16-bit PNG and JPEG "
+     "are sRGB unless the file says linear"),
+    ("SRGB", "sRGB", "Decode the sRGB transfer curve"),
+    ("LINEAR", "Linear", "The values are linear radiance already (not for 8-bit files)"),
+]
+
+REFERENCES = [
+    ("NONE", "None", "Irradiance as given (equal across photos unless you set it)"),
+    ("CARD", "Grey Card", "A grey card facing the light, marked by the reference mask"),
+    ("SCAN", "Diffuse Region", "A diffuse part of the scan, marked by the reference mask"),
+]
+
+
 def _is_camera(_self, obj):
     return obj.type == "CAMERA"
 
@@ -87,6 +101,32 @@ class BRDFPhoto(PropertyGroup):
                                     description="Light's irradiance, W/m^2 per channel")
     mask_path: StringProperty(name="Mask", subtype="FILE_PATH", options=PATH,
                               description="Optional mask image: white = use the pixel")
+    silhouette_margin: IntProperty(
+        name="Silhouette Margin", default=0, min=0, soft_max=20,
+        description="The scan's silhouette, rendered from the photo's camera, is always the "
+        "mask (with the mask image, if any); this shrinks it by so many pixels, where a "
+        "scan and its photo disagree at the outline")
+    color_space: EnumProperty(name="Colour Space", items=COLOR_SPACES, default="AUTO")
+    exposure: FloatProperty(name="Exposure Scale", default=0.0, min=0.0, soft_max=100.0,
+                            description="Factor bringing this photo to the first photo's "
+                            "radiometric scale (0 = from the EXIF shutter, aperture and ISO)")
+    reference_kind: EnumProperty(name="Irradiance Reference", items=REFERENCES,
+                                 default="NONE")
+    reference_mask_path: StringProperty(
+        name="Reference Mask", subtype="FILE_PATH", options=PATH,
+        description="Mask of the grey card, or of a diffuse part of the scan, in this photo")
+    probe_center: FloatVectorProperty(name="Sphere Centre", size=2, default=(0.0, 0.0),
+                                      description="The sphere's centre in the probe photo, "
+                                      "pixels from the top-left corner (x right, y down)")
+    probe_radius: FloatProperty(name="Sphere Radius", default=0.0, min=0.0,
+                                description="The sphere's radius in the probe photo, pixels "
+                                "(0 = find the sphere automatically)")
+    time_from_exif: BoolProperty(name="Time from EXIF", default=False,
+                                 description="Take the date and time (and UTC offset, where "
+                                 "the camera wrote one) from the photo's EXIF")
+    place_from_exif: BoolProperty(name="Place from GPS", default=False,
+                                  description="Take latitude and longitude from the photo's "
+                                  "GPS EXIF")
 
 
 class BRDFRegionResult(PropertyGroup):
@@ -149,8 +189,14 @@ class BRDFSettings(PropertyGroup):
                                   description="Eq. 2 only if the brightest pixel's normal is "
                                   "within this many degrees of h")
     clip_level: FloatProperty(name="Saturation Level", default=0.0, min=0.0,
-                              description="Pixels with a channel at or above this are "
-                              "saturated and dropped (0 = no clipping)")
+                              description="Pixels with a channel at or above this linear "
+                              "value of the file (before exposure scaling) are saturated and "
+                              "dropped; integer files are also clipped at their largest code "
+                              "(0 = only that)")
+    scene_up: FloatVectorProperty(name="Scene Up", size=3, subtype="DIRECTION",
+                                  default=(0.0, 0.0, 1.0),
+                                  description="World direction of the sky (the sun's zenith); "
+                                  "COLMAP worlds are rarely +Z up: see Up from Cameras")
     min_cosine: FloatProperty(name="Min Cosine", default=0.1, min=0.0, max=1.0,
                               description="Smallest n.l and n.v kept (grazing limit)")
 
@@ -208,7 +254,9 @@ def pipeline_settings(settings):
             peak_max_angle=math.radians(settings.peak_max_angle)),
         observation=observations.ObservationSettings(
             min_cosine=settings.min_cosine,
-            clip_level=settings.clip_level if settings.clip_level > 0 else None),
+            # the clip level is applied to the file's values before exposure scaling,
+            # where each photo's saturated mask is made (brdf_addon.photo_input)
+            clip_level=None),
         n_samples=settings.samples, n_trials=settings.trials,
         subset_fraction=settings.subset_fraction,
         min_reliable_samples=settings.min_reliable_samples, kl_bins=settings.kl_bins,

@@ -1,8 +1,10 @@
 """One reconstruction run, split where Blender must and must not be touched.
 
-1. :func:`gather` (main thread, bpy): validates the scene, reads each photo and
-   its mask, finds its light, and renders its G-buffers with Cycles
-   (``brdf_addon.gbuffer``). Returns ``core.pipeline.PhotoInput`` arrays.
+1. :func:`gather` (main thread, bpy): validates the scene, reads each photo as
+   its camera produced it (``brdf_addon.photo_input``: colour space, saturation,
+   size, lens distortion, exposure, irradiance reference), finds its light, and
+   renders its G-buffers with Cycles (``brdf_addon.gbuffer``). Returns
+   ``core.pipeline.PhotoInput`` arrays.
 2. ``core.pipeline.run`` (any thread, no bpy): the science.
 3. :func:`write_back` (main thread, bpy): writes ``brdf_<region>.binary``, the
    pictures and ``report.json`` to the output folder, fits and builds one NEW
@@ -25,9 +27,8 @@ import time
 import bpy
 import numpy as np
 
-from ..core import merl, photo_io, pictures, pipeline, selection
-from ..operators import light as light_ops
-from . import gbuffer, prefs, props
+from ..core import merl, pictures, pipeline, selection
+from . import gbuffer, photo_input, prefs, props
 
 # Lights for the bake error, camera space (+z to the viewer): not the fit's own
 # error lights (core.lobe_fit.ERROR_LIGHTS); the fit itself sees no light.
@@ -62,46 +63,38 @@ def check_scene(scene) -> None:
         raise ValueError("add at least one lit photo")
     for photo in settings.photos:
         if not photo.filepath:
+            if photo.camera is not None:
+                raise ValueError(f"camera {photo.camera.name} has no photo: choose the "
+                                 f"image file of entry {photo.name or '(unnamed)'}")
             raise ValueError(f"photo {photo.name} has no image file")
         if not os.path.isfile(bpy.path.abspath(photo.filepath)):
             raise ValueError(f"photo file not found: {bpy.path.abspath(photo.filepath)}")
         if photo.camera is None:
-            raise ValueError(f"photo {photo.name} has no camera")
+            raise ValueError(f"photo {photo.name} has no camera: pick the camera it was "
+                             "taken from")
 
 
 def gather(scene) -> list[pipeline.PhotoInput]:
     """Photos, lights and Cycles G-buffers for every photo of ``scene.brdf`` at once
     (:class:`ReconstructRun` does the same one photo per step). Raises
     ValueError (one sentence) for a bad scene."""
+    return gather_capture(scene)[0]
+
+
+def gather_capture(scene) -> tuple[list[pipeline.PhotoInput], dict]:
+    """:func:`gather`, and what was applied to the photos (the report's ``capture``)."""
     check_scene(scene)
-    return [gather_photo(scene, photo) for photo in scene.brdf.photos]
+    scales, notes = photo_input.exposure_plan(scene)
+    gathered = [photo_input.gather_photo(scene, photo, float(k), note)
+                for photo, k, note in zip(scene.brdf.photos, scales, notes, strict=True)]
+    return capture_inputs(gathered)
 
 
-def gather_photo(scene, photo) -> pipeline.PhotoInput:
-    """One photo: image, mask, light direction and Cycles G-buffers at its size."""
-    image = photo_io.read_photo(bpy.path.abspath(photo.filepath))
-    h, w = image.shape[:2]
-    want = (photo.camera.get("brdf_width"), photo.camera.get("brdf_height"))
-    if None not in want and tuple(want) != (w, h):
-        raise ValueError(f"photo {photo.name} is {w}x{h} pixels but its camera "
-                         f"{photo.camera.name} is {want[0]}x{want[1]}")
-    light = light_ops.photo_light(scene, photo)
-    mask = None
-    if photo.mask_path:
-        mask = photo_io.read_mask(bpy.path.abspath(photo.mask_path), (h, w))
-    attribute = ("material_index" if scene.brdf.region_mode == "MATERIAL_SLOT"
-                 else gbuffer.FACE_SET_ATTRIBUTE)
-    g = gbuffer.render_gbuffers(scene.brdf.target, photo.camera, light, resolution=(w, h),
-                                device=prefs.cycles_device(), region_attribute=attribute)
-    if not g.mask.any():
-        raise ValueError(f"the scan is not in view of photo {photo.name}'s camera")
-    cosine = np.einsum("hwc,c->hw", g.normal, light)
-    if not np.any(cosine[g.mask] > 0):
-        raise ValueError(f"the light of photo {photo.name} is below every surface of the scan")
-    return pipeline.PhotoInput(
-        photo=image, normal=g.normal, position=g.position, visibility=g.visibility,
-        region=g.region, camera_center=g.camera_center, light=light,
-        irradiance=np.array(photo.irradiance, dtype=np.float64), mask=mask, name=photo.name)
+def capture_inputs(gathered) -> tuple[list[pipeline.PhotoInput], dict]:
+    """Pipeline inputs of gathered photos (irradiance references applied) and the
+    report's ``capture`` section."""
+    inputs, irradiance_notes = photo_input.apply_irradiance(gathered)
+    return inputs, {"photos": [g.report for g in gathered], "irradiance": irradiance_notes}
 
 
 def output_dir(scene) -> pathlib.Path:
@@ -122,13 +115,15 @@ def _as_image(name: str, picture: np.ndarray) -> bpy.types.Image:
 
 
 def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
-               bake: bool = True, fits: dict | None = None) -> dict:
+               bake: bool = True, fits: dict | None = None,
+               capture: dict | None = None) -> dict:
     """Write tables, pictures, materials and ``report.json``; fill ``scene.brdf.results``.
 
     Returns the report dict. Existing files of the same name in the output
     folder are replaced (they are this tool's outputs); nothing else is.
     ``fits``: {region: (winner, LobeFit)} made beforehand off the main thread;
     a region whose winner changed since (Cycles selection) is fitted here.
+    ``capture``: what was applied to the photos (``gather_capture``), reported.
     """
     settings = scene.brdf
     out = output_dir(scene)
@@ -185,6 +180,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
         "settings": props.settings_dict(settings),
         "scan": settings.target.name,
         "photos": result.photo_counts,
+        "capture": capture or {},
         "regions": regions,
         "timings_s": timings | {f"pipeline_{k}": v for k, v in result.timings.items()},
         "cycles": {
@@ -253,6 +249,8 @@ class ReconstructRun:
         self.report = None
         self._cancel = False
         self._inputs = []
+        self._gathered = []
+        self._capture = None
         self._photo = 0
         self._thread = None
         self._outcome = None
@@ -263,6 +261,7 @@ class ReconstructRun:
         check_scene(scene)
         self._settings = props.pipeline_settings(scene.brdf)
         self._n_photos = len(scene.brdf.photos)
+        self._exposure = photo_input.exposure_plan(scene)
 
     @property
     def message(self) -> str:
@@ -316,8 +315,13 @@ class ReconstructRun:
         if self._photo < self._n_photos:  # G-buffers: one photo per step (bpy)
             t0 = time.perf_counter()
             self.message = f"G-buffers {self._photo + 1}/{self._n_photos}"
-            self._inputs.append(gather_photo(self.scene, self.scene.brdf.photos[self._photo]))
+            scales, notes = self._exposure
+            self._gathered.append(photo_input.gather_photo(
+                self.scene, self.scene.brdf.photos[self._photo], float(scales[self._photo]),
+                notes[self._photo]))
             self._photo += 1
+            if self._photo == self._n_photos:
+                self._inputs, self._capture = capture_inputs(self._gathered)
             self.progress = 0.3 * self._photo / self._n_photos
             self._timings["gbuffers"] = self._timings.get("gbuffers", 0.0) + (
                 time.perf_counter() - t0)
@@ -344,7 +348,7 @@ class ReconstructRun:
         self.progress, self.message = 0.9, "writing results"
         self._timings["total_before_outputs"] = time.perf_counter() - self._t0
         self.report = write_back(self.scene, self._inputs, value, self._timings, self.bake,
-                                 self._fits)
+                                 self._fits, self._capture)
         self.progress, self.message = 1.0, "done"
         return True
 

@@ -65,6 +65,11 @@ class ColmapImage:
     point3D_ids: (M,) int64 ids of the 3D points this image observes, or
         None if observations were not read.
     points2D: (M, 2) float64 pixel positions of those observations, or None.
+    params: the camera model's parameters in COLMAP's order (e.g. OPENCV: fx,
+        fy, cx, cy, k1, k2, p1, p2; pixels for focal lengths and principal
+        point, distortion coefficients on normalized coordinates), as read
+        from the model; what ``core.undistort`` needs. Empty if the record
+        was made by hand without them.
     """
 
     image_id: int
@@ -82,6 +87,7 @@ class ColmapImage:
     t_cam_from_world: np.ndarray
     point3D_ids: np.ndarray | None = None
     points2D: np.ndarray | None = None
+    params: tuple[float, ...] = ()
 
     @property
     def centre(self) -> np.ndarray:
@@ -205,12 +211,9 @@ def _image_record(rec, image, observations: bool) -> ColmapImage:
             f"Image {image.name!r} uses the {model} camera model, which is not a "
             "perspective camera and cannot become a Blender camera"
         )
-    params = np.asarray(camera.params, dtype=np.float64)
-    focal = params[list(camera.focal_length_idxs())]
-    cx, cy = params[list(camera.principal_point_idxs())]
-    fx, fy = (focal[0], focal[0]) if focal.size == 1 else (focal[0], focal[1])
-    # Fisheye models are not pinholes even with zero coefficients.
-    distorted = not camera.is_perspective_pinhole() or not camera.is_undistorted()
+    params = tuple(float(p) for p in camera.params)
+    fx, fy, cx, cy = _pinhole_of(camera)
+    distorted = _distorted(camera)
 
     pose = np.asarray(image.cam_from_world().matrix(), dtype=np.float64)  # (3, 4) [R | t]
     ids = xy = None
@@ -234,7 +237,72 @@ def _image_record(rec, image, observations: bool) -> ColmapImage:
         t_cam_from_world=pose[:, 3].copy(),
         point3D_ids=ids,
         points2D=xy,
+        params=params,
     )
+
+
+# --------------------------------------------------------------------------- camera models
+
+
+def pycolmap_camera(model: str, params, width: int = 1, height: int = 1):
+    """A ``pycolmap.Camera`` of a COLMAP model name, its parameters and image size.
+
+    model: COLMAP model name, e.g. "OPENCV". params: the model's parameters in
+    COLMAP's order (sequence of floats). width, height: image size, pixels.
+    Raises ValueError (one sentence) for an unknown model or a parameter
+    count that does not fit it.
+    """
+    import pycolmap
+
+    name = str(model)
+    if name not in pycolmap.CameraModelId.__members__ or name == "INVALID":
+        raise ValueError(f"Unknown COLMAP camera model {name!r}")
+    w, h = _check_size(width, height)
+    values = np.asarray(params, dtype=np.float64).reshape(-1)
+    camera = pycolmap.Camera.create_from_model_name(0, name, 1.0, w, h)
+    if values.size != len(camera.params):
+        raise ValueError(
+            f"The {name} camera model takes {len(camera.params)} parameters "
+            f"({camera.params_info}), got {values.size}"
+        )
+    if not np.isfinite(values).all():
+        raise ValueError(f"The {name} camera parameters must be finite, got {values.tolist()}")
+    camera.params = values
+    return camera
+
+
+def pinhole_params(model: str, params) -> tuple[float, float, float, float]:
+    """(fx, fy, cx, cy) in pixels of any COLMAP camera model's parameters.
+
+    The focal lengths and principal point the model's params hold (one
+    shared focal length gives fx = fy), i.e. the pinhole that
+    ``blender_intrinsics`` turns into a Blender camera and that
+    ``core.undistort`` resamples photos to. COLMAP pixel convention.
+    """
+    return _pinhole_of(pycolmap_camera(model, params))
+
+
+def is_distorted(model: str, params) -> bool:
+    """True if a COLMAP camera is not a plain pinhole projection.
+
+    The rule ``ColmapImage.distorted`` uses: fisheye (and other non-pinhole)
+    models always, pinhole-type models when a distortion parameter is
+    non-zero (beyond pycolmap's 1e-8 tolerance).
+    """
+    return _distorted(pycolmap_camera(model, params))
+
+
+def _pinhole_of(camera) -> tuple[float, float, float, float]:
+    params = np.asarray(camera.params, dtype=np.float64)
+    focal = params[list(camera.focal_length_idxs())]
+    cx, cy = params[list(camera.principal_point_idxs())]
+    fx, fy = (focal[0], focal[0]) if focal.size == 1 else (focal[0], focal[1])
+    return float(fx), float(fy), float(cx), float(cy)
+
+
+def _distorted(camera) -> bool:
+    # Fisheye models are not pinholes even with zero coefficients.
+    return bool(not camera.is_perspective_pinhole() or not camera.is_undistorted())
 
 
 # --------------------------------------------------------------------------- conversions

@@ -114,6 +114,7 @@ def observe(
     view_index: int = 0,
     settings: ObservationSettings | None = None,
     curvature_map: np.ndarray | None = None,
+    saturated: np.ndarray | None = None,
 ) -> Samples:
     """Samples from one photo.
 
@@ -125,7 +126,10 @@ def observe(
     here). irradiance: scalar or RGB (3,), > 0. mask: optional (H, W) bool of
     pixels to use. curvature_map: (H, W) the result of :func:`image_curvature` for
     these G-buffers, to reuse it across photos taken from one camera (computed
-    here when None). Raises ValueError for mismatched shapes or a bad light.
+    here when None). saturated: optional (H, W) bool of pixels at the camera's
+    white level (``core.photo_io.Photo.saturated``, found on the file's own code
+    values); they are removed and counted as saturated, like pixels at or above
+    ``settings.clip_level``. Raises ValueError for mismatched shapes or a bad light.
     """
     settings = settings or ObservationSettings()
     photo = np.asarray(photo, dtype=np.float64)
@@ -199,10 +203,16 @@ def observe(
     for b in _blocks(len(flat)):
         grazing[b] |= _dot(n[b], v[b]) < settings.min_cosine
     removed["grazing"] = int(np.count_nonzero(grazing))
-    saturated = None
+    saturated_rows = None
+    if saturated is not None:
+        saturated = np.asarray(saturated, dtype=bool)
+        if saturated.shape != shape:
+            raise ValueError(f"saturated must have shape {shape}, got {saturated.shape}")
+        saturated_rows = np.take(saturated.reshape(-1), flat)
     if settings.clip_level is not None:
-        saturated = np.any(np.take(photo_rows, flat, axis=0) >= settings.clip_level,
-                           axis=1) & ~grazing
+        clipped = np.any(np.take(photo_rows, flat, axis=0) >= settings.clip_level, axis=1)
+        saturated_rows = clipped if saturated_rows is None else saturated_rows | clipped
+    saturated = None if saturated_rows is None else saturated_rows & ~grazing
     removed["saturated"] = int(np.count_nonzero(saturated)) if saturated is not None else 0
     ok = ~grazing if saturated is None else ~grazing & ~saturated
 

@@ -43,7 +43,8 @@ class PhotoInput:
     region: (H, W) int, -1 = not the target object. camera_center: (3,) world
     space. light: (3,) world direction towards the distant light. irradiance:
     scalar or (3,) on a surface facing the light. mask: optional (H, W) bool of
-    pixels the user allows. name: for reports.
+    pixels the user allows. saturated: optional (H, W) bool of pixels at the
+    camera's white level (removed up front and counted). name: for reports.
     """
 
     photo: np.ndarray
@@ -56,6 +57,7 @@ class PhotoInput:
     irradiance: float | np.ndarray = 1.0
     mask: np.ndarray | None = None
     name: str = ""
+    saturated: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -164,7 +166,8 @@ def observe_photos(inputs: Sequence[PhotoInput], settings: PipelineSettings,
             progress(i / max(len(inputs), 1), f"observing photo {i + 1}/{len(inputs)}")
         parts.append(observations.observe(
             p.photo, p.normal, p.position, p.visibility, p.region, p.camera_center, p.light,
-            p.irradiance, p.mask, view_index=i, settings=settings.observation))
+            p.irradiance, p.mask, view_index=i, settings=settings.observation,
+            saturated=p.saturated))
     counts = [dict(name=p.name, samples=len(part), removed=part.removed)
               for p, part in zip(inputs, parts, strict=True)]
     return observations.concatenate(parts), counts
@@ -188,17 +191,22 @@ def region_views(inputs: Sequence[PhotoInput], region: int) -> list[selection.Vi
 
 def saturated_pixels(inputs: Sequence[PhotoInput], region: int,
                      clip_level: float | None) -> int:
-    """Pixels of ``region`` (and of each photo's mask) with any channel at or above
-    ``clip_level``, over all photos; 0 when no clip level is set."""
-    if clip_level is None:
-        return 0
+    """Pixels of ``region`` (and of each photo's mask) that are saturated: marked in
+    the photo's ``saturated`` mask, or with any channel at or above ``clip_level``
+    (None: no level), over all photos."""
     total = 0
     for p in inputs:
+        if clip_level is None and p.saturated is None:
+            continue
         inside = np.asarray(p.region) == region
         if p.mask is not None:
             inside &= np.asarray(p.mask, dtype=bool)
-        total += int(np.count_nonzero(inside & np.any(np.asarray(p.photo) >= clip_level,
-                                                      axis=-1)))
+        hit = np.zeros(inside.shape, dtype=bool)
+        if p.saturated is not None:
+            hit |= np.asarray(p.saturated, dtype=bool)
+        if clip_level is not None:
+            hit |= np.any(np.asarray(p.photo) >= clip_level, axis=-1)
+        total += int(np.count_nonzero(inside & hit))
     return total
 
 

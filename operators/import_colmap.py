@@ -3,10 +3,15 @@
 Each registered image becomes a camera object, named after the image, in a
 new collection. Its custom properties carry what later steps need:
 ``brdf_image_name`` (the exact COLMAP image name, to match photos),
-``brdf_width`` / ``brdf_height`` (pixels) and ``brdf_pixel_aspect_x`` /
-``_y`` (non-square pixels stand for fx != fy). Render size and pixel aspect
-are scene settings in Blender, so a render from one of these cameras must
-first call `set_render_to_camera`. The math is in ``core.colmap``.
+``brdf_width`` / ``brdf_height`` (pixels), ``brdf_pixel_aspect_x`` / ``_y``
+(non-square pixels stand for fx != fy), and the lens:
+``brdf_colmap_camera_model`` (e.g. "OPENCV"), ``brdf_colmap_params`` (the
+model's parameters in COLMAP's order, floats) and ``brdf_colmap_distorted``.
+The camera itself is the model's pinhole (its fx, fy, cx, cy and image
+size); a distorted camera's photos are resampled to it with
+``core.undistort`` before use. Render size and pixel aspect are scene
+settings in Blender, so a render from one of these cameras must first call
+`set_render_to_camera`. The math is in ``core.colmap``.
 """
 
 import os
@@ -75,6 +80,7 @@ def import_cameras(context_or_scene, model_dir, *, point_cloud: bool = False) ->
         obj["brdf_pixel_aspect_y"] = intr.pixel_aspect_y
         obj["brdf_colmap_image_id"] = im.image_id
         obj["brdf_colmap_camera_model"] = im.camera_model
+        obj["brdf_colmap_params"] = [float(p) for p in im.params]
         obj["brdf_colmap_distorted"] = im.distorted
         obj["brdf_colmap_model"] = model.path
         collection.objects.link(obj)
@@ -157,8 +163,8 @@ class BRDF_OT_import_colmap(bpy.types.Operator):
         if distorted:
             self.report(
                 {"WARNING"},
-                f"{distorted} of {len(cameras)} cameras have lens distortion, which Blender "
-                "cameras ignore; undistort the model and photos first (COLMAP image_undistorter)",
+                f"{distorted} of {len(cameras)} cameras have lens distortion; their lit "
+                "photos will be undistorted automatically before use",
             )
         else:
             folder = os.path.basename(os.path.normpath(bpy.path.abspath(self.directory)))

@@ -4,9 +4,13 @@
 Directions are world-space unit vectors *towards* the distant light. A Blender
 Sun shines along its local -Z, so the direction towards it is the object's
 local +Z axis in world space. Sun position: ``core.sun`` (NOAA) gives
-(east, north, up); the scene's north is +Y turned by the photo's north offset
-about +Z. The light probe: ``core.light_probe`` on the probe photo, seen by
-the photo's camera (perspective intrinsics from the camera and render size).
+(east, north, up); ``core.scene_frame`` maps it into the scene, whose up is
+``scene.brdf.scene_up`` (set by hand or from the cameras, ``brdf.up_from_cameras``)
+and whose north is +Y (projected off that up) turned by the photo's north
+offset. Date, time and place may come from the photo's EXIF and GPS
+(``core.exif``). The light probe: ``core.light_probe`` on the probe photo, seen
+by the photo's camera (perspective intrinsics from the camera and render size);
+the sphere is found automatically or given as a centre and radius in pixels.
 """
 
 import datetime as dt
@@ -16,7 +20,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ..core import light_probe, photo_io, sun
+from ..core import exif, light_probe, photo_io, scene_frame, sun
 
 SUN_NAME = "BRDF Sun"
 
@@ -36,15 +40,61 @@ def parse_when(text: str, utc_offset_hours: float) -> dt.datetime:
     return naive.replace(tzinfo=dt.timezone(dt.timedelta(hours=utc_offset_hours)))
 
 
-def sun_position_direction(photo) -> np.ndarray:
-    """(3,) world direction towards the sun at the photo's date, time and place."""
-    when = parse_when(photo.when, photo.utc_offset)
-    local = sun.sun_direction(when, photo.latitude, photo.longitude)
-    sun.check_above_horizon(local, when, photo.latitude, photo.longitude)
-    a = math.radians(photo.north_offset)
-    rot = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0],
-                    [0.0, 0.0, 1.0]])
-    return rot @ local
+def when_and_where(photo) -> tuple[dt.datetime, float, float, list[str]]:
+    """The photo's (aware datetime, latitude, longitude) and where each came from:
+    typed, or the lit photo's EXIF date/time (with its UTC offset where the camera
+    wrote one, else the typed offset) and GPS position."""
+    notes = []
+    metadata = {}
+    if photo.time_from_exif or photo.place_from_exif:
+        metadata = photo_io.read_metadata(bpy.path.abspath(photo.filepath))
+    if photo.time_from_exif:
+        found = exif.capture_time(metadata)
+        if found is None:
+            raise ValueError(f"photo {photo.name} has no EXIF date and time; type them")
+        when, has_offset = found
+        if not has_offset:
+            when = when.replace(tzinfo=dt.timezone(dt.timedelta(hours=photo.utc_offset)))
+        notes.append(f"time {when.isoformat()} from EXIF"
+                     + ("" if has_offset else " (UTC offset typed)"))
+    else:
+        when = parse_when(photo.when, photo.utc_offset)
+    if photo.place_from_exif:
+        place = exif.gps_position(metadata)
+        if place is None:
+            raise ValueError(f"photo {photo.name} has no GPS position in its EXIF; type "
+                             "latitude and longitude")
+        latitude, longitude = place
+        notes.append(f"place {latitude:.5f}, {longitude:.5f} from GPS EXIF")
+    else:
+        latitude, longitude = photo.latitude, photo.longitude
+    return when, latitude, longitude, notes
+
+
+def sun_position_direction(photo, scene=None, details: dict | None = None) -> np.ndarray:
+    """(3,) world direction towards the sun at the photo's date, time and place, in
+    the scene's frame (``scene.brdf.scene_up``, +Z without a scene)."""
+    when, latitude, longitude, notes = when_and_where(photo)
+    local = sun.sun_direction(when, latitude, longitude)
+    sun.check_above_horizon(local, when, latitude, longitude)
+    up = (0.0, 0.0, 1.0) if scene is None else tuple(scene.brdf.scene_up)
+    world = scene_frame.world_from_enu(up, math.radians(photo.north_offset)) @ local
+    if details is not None:
+        details.update(notes=notes, when=when.isoformat(), latitude=latitude,
+                       longitude=longitude, up=list(up))
+    return world
+
+
+def up_from_cameras(scene) -> tuple[np.ndarray, float]:
+    """The scene's up from its cameras (``core.scene_frame.up_from_cameras``) and
+    their spread (radians); ValueError with fewer than two cameras."""
+    cameras = [o for o in scene.objects if o.type == "CAMERA"]
+    if len(cameras) < 2:
+        raise ValueError(f"finding up from the cameras needs at least 2, the scene has "
+                         f"{len(cameras)}")
+    rotations = np.array([np.array(c.matrix_world.to_3x3().normalized()) for c in cameras])
+    centres = np.array([np.array(c.matrix_world.translation) for c in cameras])
+    return scene_frame.up_from_cameras(rotations, centres)
 
 
 def camera_intrinsics(scene, camera_obj, width: int, height: int):
@@ -66,8 +116,11 @@ def camera_intrinsics(scene, camera_obj, width: int, height: int):
                       height / 2 + cam.shift_y * unit - 0.5))
 
 
-def probe_direction(scene, photo) -> np.ndarray:
-    """(3,) world direction from the probe photo (sphere detected automatically)."""
+def probe_result(scene, photo) -> light_probe.LightProbeResult:
+    """The probe photo's light (world direction, uncertainty, highlight): the sphere
+    is the user's circle (``probe_center``, ``probe_radius`` > 0, refined onto the
+    outline by ``core.light_probe.refine_sphere``: 1 px off costs about 2 d / r
+    radians) or found automatically (``core.light_probe.locate_sphere``)."""
     if not photo.probe_path:
         raise ValueError(f"photo {photo.name} has no sphere-probe photo")
     if photo.camera is None:
@@ -75,21 +128,33 @@ def probe_direction(scene, photo) -> np.ndarray:
     image = photo_io.read_photo(bpy.path.abspath(photo.probe_path))
     h, w = image.shape[:2]
     camera = camera_intrinsics(scene, photo.camera, w, h)
-    # the sphere's outline: halfway up to the 99th percentile of luminance, so the
-    # highlight (a few pixels, far brighter) does not set the threshold
-    lum = np.nan_to_num(image @ np.array([0.2126, 0.7152, 0.0722]))
-    top = float(np.percentile(lum, 99))
-    center, radius = light_probe.detect_sphere(lum > 0.5 * (lum.min() + top), camera=camera)
+    if photo.probe_radius > 0:  # the user's circle, snapped to the sphere's outline
+        center, radius = light_probe.refine_sphere(image, tuple(photo.probe_center),
+                                                   photo.probe_radius, camera=camera)
+    else:
+        center, radius = light_probe.locate_sphere(image, camera=camera)
     rotation = np.array(photo.camera.matrix_world.to_3x3().normalized())
-    result = light_probe.light_from_sphere(image, center, radius, camera, rotation)
+    return light_probe.light_from_sphere(image, center, radius, camera, rotation)
+
+
+def probe_direction(scene, photo, details: dict | None = None) -> np.ndarray:
+    """(3,) world direction from the probe photo (see :func:`probe_result`)."""
+    result = probe_result(scene, photo)
+    if details is not None:
+        details.update(uncertainty_deg=math.degrees(result.uncertainty_rad),
+                       highlight_px=list(result.highlight_px),
+                       sphere="given" if photo.probe_radius > 0 else "found")
     return result.direction_world
 
 
-def photo_light(scene, photo) -> np.ndarray:
+def photo_light(scene, photo, details: dict | None = None) -> np.ndarray:
     """(3,) world unit direction towards the photo's light; ValueError (one sentence)
     when it cannot be found or is below the horizon of the scene (z <= 0 is
-    allowed only for a direction or Sun object: objects can be lit from below)."""
+    allowed only for a direction or Sun object: objects can be lit from below).
+    details: a dict to fill with how it was found (for the report)."""
     source = photo.light_source
+    if details is not None:
+        details["source"] = source.lower()
     if source == "SUN_OBJECT":
         if photo.sun is None:
             raise ValueError(f"photo {photo.name} has no Sun object for its light")
@@ -99,9 +164,9 @@ def photo_light(scene, photo) -> np.ndarray:
         if not np.linalg.norm(direction) > 0:
             raise ValueError(f"photo {photo.name} has a zero light direction")
     elif source == "PROBE":
-        direction = probe_direction(scene, photo)
+        direction = probe_direction(scene, photo, details)
     elif source == "SUN_POSITION":
-        direction = sun_position_direction(photo)
+        direction = sun_position_direction(photo, scene, details)
     else:
         raise ValueError(f"photo {photo.name}: unknown light source {source}")
     return direction / np.linalg.norm(direction)
@@ -155,13 +220,15 @@ class BRDF_OT_light_from_probe(_PhotoOperator):
     def execute(self, context):
         photo = _active_photo(context)
         try:
-            direction = probe_direction(context.scene, photo)
+            result = probe_result(context.scene, photo)
         except ValueError as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
+        direction = result.direction_world
         photo.direction = direction.tolist()
         photo.light_source = "DIRECTION"
-        self.report({"INFO"}, f"{photo.name}: light {np.round(direction, 4).tolist()}")
+        self.report({"INFO"}, f"{photo.name}: light {np.round(direction, 4).tolist()}, "
+                    f"uncertainty {math.degrees(result.uncertainty_rad):.2f} deg")
         return {"FINISHED"}
 
 
@@ -175,7 +242,7 @@ class BRDF_OT_light_from_time(_PhotoOperator):
     def execute(self, context):
         photo = _active_photo(context)
         try:
-            direction = sun_position_direction(photo)
+            direction = sun_position_direction(photo, context.scene)
         except ValueError as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
@@ -183,6 +250,30 @@ class BRDF_OT_light_from_time(_PhotoOperator):
         photo.light_source = "SUN_POSITION"
         photo.sun = obj
         self.report({"INFO"}, f"{photo.name}: sun at {np.round(direction, 4).tolist()}")
+        return {"FINISHED"}
+
+
+class BRDF_OT_up_from_cameras(bpy.types.Operator):
+    """Set the scene's up (the sky, for the sun's direction) from the cameras: the
+    normal of the plane of their centres, or their mean up axis"""
+
+    bl_idname = "brdf.up_from_cameras"
+    bl_label = "Up from Cameras"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return hasattr(context.scene, "brdf") and not context.scene.brdf.running
+
+    def execute(self, context):
+        try:
+            up, spread = up_from_cameras(context.scene)
+        except ValueError as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        context.scene.brdf.scene_up = up.tolist()
+        self.report({"INFO"}, f"scene up {np.round(up, 4).tolist()} (cameras spread "
+                    f"{math.degrees(spread):.1f} deg)")
         return {"FINISHED"}
 
 
@@ -200,4 +291,5 @@ def update_sun_object(scene, direction) -> bpy.types.Object:
     return obj
 
 
-CLASSES = (BRDF_OT_light_from_sun, BRDF_OT_light_from_probe, BRDF_OT_light_from_time)
+CLASSES = (BRDF_OT_light_from_sun, BRDF_OT_light_from_probe, BRDF_OT_light_from_time,
+           BRDF_OT_up_from_cameras)

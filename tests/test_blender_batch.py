@@ -36,6 +36,7 @@ irradiance = {math.pi}
 def job_dir(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("batch")
     BS.build(tmp)
+    (tmp / "other.exr").write_bytes((tmp / "view0.exr").read_bytes())  # matches no camera
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp / "scene.blend"))
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return tmp
@@ -85,12 +86,27 @@ def test_same_seed_same_table(job_dir):
      "No reliable pixels"),
     (('object = "Scan"', 'object = "Nothing"'), "no mesh object named Nothing"),
     (("seed = 4", "sede = 4"), "unknown settings: sede"),
+    # a photo with no camera: none given, and its own name matches none
+    ((f'image = "view0.exr"\ncamera = "{BS.IMAGE_NAME}"', 'image = "other.exr"'),
+     "photo other.exr matches no camera by image name; give its camera"),
+    # a camera with no photo
+    (('image = "view0.exr"\n', ""), f"camera {BS.IMAGE_NAME} has no photo"),
 ])
 def test_bad_job_exits_1_with_one_line(job_dir, change, message):
     result = _run(job_dir, GOOD.replace(*change), "bad.toml")
     assert result.returncode == 1, result.stderr
     errors = [ln for ln in result.stderr.splitlines() if ln.startswith("error:")]
     assert len(errors) == 1 and message in errors[0], result.stderr
+
+
+def test_camera_found_by_the_photo_name_when_left_out(job_dir):
+    result = _run(job_dir, GOOD.replace(f'camera = "{BS.IMAGE_NAME}"\n', "")
+                  .replace('out = "out"', 'out = "named"'), "named.toml")
+    assert result.returncode == 0, result.stderr
+    report = json.loads((job_dir / "named" / "report.json").read_text())
+    assert report["capture"]["photos"][0]["name"] == "view0.exr"
+    assert any(ln.startswith("note: ") and "assumed equal" in ln
+               for ln in result.stdout.splitlines())
 
 
 def test_wrong_command_line_exits_2():

@@ -164,7 +164,8 @@ def _snapshot(objects):
     return {
         o.name: (
             [list(row) for row in o.matrix_world],
-            dict(o.items()),
+            # ID property arrays compare by identity: compare their values
+            {k: v.to_list() if hasattr(v, "to_list") else v for k, v in o.items()},
             data(o),
             [c.name for c in o.users_collection],
         )
@@ -262,3 +263,247 @@ def test_operator_declares_undo_and_a_folder_browser():
     directory = bpy.ops.brdf.import_colmap.get_rna_type().properties["directory"]
     assert directory.subtype == "DIR_PATH"
     assert "invoke" in OP.__dict__  # opens the file browser (fileselect_add)
+
+
+# --------------------------------------------------------------------------- lens parameters
+
+
+def test_distorted_camera_carries_its_params_and_warns_of_undistortion(tmp_path):
+    params = [700, 710, 250, 200, 0.05, -0.01, 0.001, 0.002]
+    views = [
+        ("d.jpg", "OPENCV", params, 500, 400, *cm.look_at([3, 0, 0], [0, 0, 0])),
+        ("p.jpg", "PINHOLE", [600, 600, 250, 200], 500, 400, *cm.look_at([0, 3, 0], [0, 0, 0])),
+    ]
+    cm.synthetic_reconstruction(views, np.zeros((0, 3))).write(str(tmp_path))
+    fake = _FakeOperator(directory=str(tmp_path), point_cloud=False, reports=[])
+    assert OP.execute(fake, bpy.context) == {"FINISHED"}
+    ((kind, message),) = fake.reports
+    assert kind == {"WARNING"} and "\n" not in message
+    assert message.startswith("1 of 2 cameras have lens distortion")
+    assert "undistorted automatically" in message
+    cams = {o["brdf_image_name"]: o for o in _imported_cameras()}
+    assert list(cams["d.jpg"]["brdf_colmap_params"]) == pytest.approx(params, abs=0)
+    assert list(cams["p.jpg"]["brdf_colmap_params"]) == [600, 600, 250, 200]
+    assert all(isinstance(v, float) for v in cams["d.jpg"]["brdf_colmap_params"])
+
+
+def _shared_camera_model(path):
+    """Two COLMAP cameras (PINHOLE 640 x 480, OPENCV 500 x 400) shared by four images,
+    built with pycolmap directly; written binary to `path`. Returns the world points."""
+    cameras = {
+        1: ("PINHOLE", [800.0, 820.0, 330.0, 250.0], 640, 480),
+        2: ("OPENCV", [600.0, 610.0, 245.0, 210.0, -0.1, 0.02, 0.001, -0.002], 500, 400),
+    }
+    images = [
+        ("p1.jpg", 1, cm.look_at([4, 0.5, 1], [0, 0, 0])),
+        ("o1.jpg", 2, cm.look_at([0.3, 4, 1.5], [0, 0, 0.1])),
+        ("p2.jpg", 1, cm.look_at([-3, -3, 0.5], [0.1, 0, 0])),
+        ("o2.jpg", 2, cm.look_at([-4, 1, -1], [0, 0, 0])),
+    ]
+    xyz = np.random.default_rng(5).uniform(-1, 1, (150, 3))
+    rec = pycolmap.Reconstruction()
+    for cid, (model, params, w, h) in cameras.items():
+        camera = pycolmap.Camera.create_from_model_name(cid, model, 1.0, w, h)
+        camera.params = params
+        rec.add_camera_with_trivial_rig(camera)
+    tracks = [[] for _ in xyz]
+    for k, (name, cid, (R, t)) in enumerate(images, start=1):
+        uv = rec.camera(cid).img_from_cam(xyz @ R.T + t)
+        image = pycolmap.Image(name=name, keypoints=uv, camera_id=cid, image_id=k)
+        rec.add_image_with_trivial_frame(image, pycolmap.Rigid3d(pycolmap.Rotation3d(R), t))
+        for j in range(len(xyz)):
+            tracks[j].append(pycolmap.TrackElement(k, j))
+    for j, track in enumerate(tracks):
+        rec.add_point3D(xyz[j], pycolmap.Track(track), np.zeros(3, np.uint8))
+    rec.write(str(path))
+    return xyz
+
+
+def _blender_pixels(obj, xyz):
+    """(N, 2) pixels of world points through a Blender camera (world_to_camera_view)."""
+    scene = bpy.context.scene
+    ic.set_render_to_camera(scene, obj)
+    w, h = scene.render.resolution_x, scene.render.resolution_y
+    out = []
+    for p in xyz:
+        u, v, depth = world_to_camera_view(scene, obj, Vector(p))
+        assert depth > 0
+        out.append([u * w, (1.0 - v) * h])
+    return np.array(out)
+
+
+def test_several_shared_cameras_give_each_image_its_own_intrinsics_and_size(tmp_path):
+    xyz = _shared_camera_model(tmp_path)
+    rec = pycolmap.Reconstruction(str(tmp_path))
+    assert len(rec.cameras) == 2 and len(rec.images) == 4
+    cams = {o["brdf_image_name"]: o for o in ic.import_cameras(bpy.context.scene, tmp_path)}
+    assert sorted(cams) == ["o1.jpg", "o2.jpg", "p1.jpg", "p2.jpg"]
+    for image in (rec.image(i) for i in rec.reg_image_ids()):
+        obj, camera = cams[image.name], rec.camera(image.camera_id)
+        assert (obj["brdf_width"], obj["brdf_height"]) == (camera.width, camera.height)
+        assert list(obj["brdf_colmap_params"]) == list(camera.params)
+        assert obj["brdf_colmap_camera_model"] == camera.model.name
+        assert obj["brdf_colmap_distorted"] == (camera.model.name == "OPENCV")
+        pose = image.cam_from_world()
+        cam_pts = xyz @ pose.rotation.matrix().T + pose.translation
+        fx, fy, cx, cy = camera.params[:4]  # both models start with fx, fy, cx, cy
+        pinhole = np.column_stack(
+            [fx * cam_pts[:, 0] / cam_pts[:, 2] + cx, fy * cam_pts[:, 1] / cam_pts[:, 2] + cy]
+        )
+        px = _blender_pixels(obj, xyz)
+        np.testing.assert_allclose(px, pinhole, rtol=0, atol=0.01)  # the model's own pinhole
+        observed = np.array([p.xy for p in image.points2D])
+        if camera.model.name == "PINHOLE":
+            np.testing.assert_allclose(px, observed, rtol=0, atol=0.01)
+        else:  # the lens moves COLMAP's observations off the pinhole; undistortion's job
+            assert np.abs(px - observed).max() > 1.0
+    # the two images on camera 1 share one size, the two on camera 2 another
+    assert {(o["brdf_width"], o["brdf_height"]) for o in cams.values()} == {(640, 480), (500, 400)}
+    assert cams["p1.jpg"].data.lens == pytest.approx(cams["p2.jpg"].data.lens)
+    assert cams["o1.jpg"].data.lens != pytest.approx(cams["p1.jpg"].data.lens)
+
+
+def test_only_registered_images_become_cameras_even_without_points(tmp_path):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    names = ["a.jpg", "b.jpg", "c.jpg", "d.jpg", "e.jpg"]
+    for name in names:
+        (photos / name).write_bytes(b"")
+    views = [
+        ("a.jpg", "PINHOLE", [500, 500, 320, 240], 640, 480, *cm.look_at([4, 0, 1], [0, 0, 0])),
+        ("b.jpg", "PINHOLE", [500, 500, 320, 240], 640, 480, *cm.look_at([0, 4, 1], [0, 0, 0])),
+        # looks away from every point: registered, but with no observation
+        ("c.jpg", "PINHOLE", [500, 500, 320, 240], 640, 480,
+         *cm.look_at([5, 5, 5], [10, 11, 12])),
+    ]  # fmt: skip
+    xyz = np.random.default_rng(2).uniform(-1, 1, (60, 3))
+    rec = cm.synthetic_reconstruction(views, xyz)
+    rec.deregister_frame(rec.image(2).frame_id)  # b.jpg failed to register in SfM
+    model = tmp_path / "sparse"
+    model.mkdir()
+    rec.write_text(str(model))
+    assert "b.jpg" not in (model / "images.txt").read_text()
+    cams = ic.import_cameras(bpy.context.scene, model)
+    assert [o["brdf_image_name"] for o in cams] == ["a.jpg", "c.jpg"]  # of 5 photos
+    c = cams[1]
+    assert pycolmap.Reconstruction(str(model)).image(3).num_points3D == 0
+    R, t = views[2][5], views[2][6]
+    np.testing.assert_allclose(np.array(c.matrix_world), cm.camera_to_world(R, t), atol=1e-6)
+    ahead = cm.camera_centre(R, t) + np.random.default_rng(3).uniform(4, 6, (20, 3))
+    px = _blender_pixels(c, ahead)
+    camera = pycolmap.Camera.create_from_model_name(1, "PINHOLE", 1.0, 640, 480)
+    camera.params = [500, 500, 320, 240]
+    np.testing.assert_allclose(px, camera.img_from_cam(ahead @ R.T + t), rtol=0, atol=0.01)
+
+
+# ------------------------------------------------------------------- meshes in COLMAP's frame
+
+
+def _ellipsoid():
+    """A closed triangle mesh around the model's points, with no symmetry that an axis
+    swap could hide: (V, 3) float64 vertices and (F, 3) int faces."""
+    lat = np.linspace(0, np.pi, 9)[1:-1]
+    lon = np.linspace(0, 2 * np.pi, 13)[:-1]
+    la, lo = np.meshgrid(lat, lon, indexing="ij")
+    ring = np.stack([np.sin(la) * np.cos(lo), np.sin(la) * np.sin(lo), np.cos(la)], -1)
+    v = np.concatenate([[[0, 0, 1]], ring.reshape(-1, 3), [[0, 0, -1]]])
+    v = v * [0.9, 0.7, 0.5] + [0.15, -0.2, 0.1]
+    n_lat, n_lon = la.shape
+    idx = 1 + np.arange(n_lat * n_lon).reshape(n_lat, n_lon)
+    faces = [[0, idx[0, j], idx[0, (j + 1) % n_lon]] for j in range(n_lon)]
+    for i in range(n_lat - 1):
+        for j in range(n_lon):
+            a, b = idx[i, j], idx[i, (j + 1) % n_lon]
+            c, d = idx[i + 1, j], idx[i + 1, (j + 1) % n_lon]
+            faces += [[a, c, b], [b, c, d]]
+    last = len(v) - 1
+    faces += [[last, idx[-1, (j + 1) % n_lon], idx[-1, j]] for j in range(n_lon)]
+    return v, np.array(faces)
+
+
+def _write_mesh(path, v, f):
+    if path.suffix == ".obj":
+        lines = [f"v {x:.9f} {y:.9f} {z:.9f}" for x, y, z in v]
+        lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in f]
+    elif path.suffix == ".ply":
+        lines = ["ply", "format ascii 1.0", f"element vertex {len(v)}", "property float x",
+                 "property float y", "property float z", f"element face {len(f)}",
+                 "property list uchar int vertex_indices", "end_header"]  # fmt: skip
+        lines += [f"{x:.9f} {y:.9f} {z:.9f}" for x, y, z in v]
+        lines += [f"3 {a} {b} {c}" for a, b, c in f]
+    else:
+        lines = ["solid colmap"]
+        for tri in f:
+            lines += ["facet normal 0 0 0", "outer loop"]
+            lines += [f"vertex {x:.9f} {y:.9f} {z:.9f}" for x, y, z in v[tri]]
+            lines += ["endloop", "endfacet"]
+        lines.append("endsolid colmap")
+    path.write_text("\n".join(lines) + "\n")
+
+
+IDENTITY_AXES = {
+    ".obj": (bpy.ops.wm.obj_import, {"forward_axis": "Y", "up_axis": "Z", "global_scale": 1.0}),
+    ".ply": (bpy.ops.wm.ply_import, {"forward_axis": "Y", "up_axis": "Z", "global_scale": 1.0,
+                                     "use_scene_unit": False}),
+    ".stl": (bpy.ops.wm.stl_import, {"forward_axis": "Y", "up_axis": "Z", "global_scale": 1.0,
+                                     "use_scene_unit": False}),
+}  # fmt: skip
+
+
+def _import_mesh(path, **kwargs):
+    before = set(bpy.data.objects)
+    importer = IDENTITY_AXES[path.suffix][0]
+    assert importer(filepath=str(path), **kwargs) == {"FINISHED"}
+    (obj,) = set(bpy.data.objects) - before
+    co = np.empty(3 * len(obj.data.vertices), np.float32)
+    obj.data.vertices.foreach_get("co", co)
+    M = np.array(obj.matrix_world)
+    return co.reshape(-1, 3).astype(np.float64) @ M[:3, :3].T + M[:3, 3]
+
+
+def _matched(world, reference):
+    """For each imported vertex, the index of the file vertex it came from (nearest)."""
+    d = np.linalg.norm(world[:, None, :] - reference[None, :, :], axis=2)
+    return d.argmin(axis=1), d.min(axis=1)
+
+
+@pytest.mark.parametrize("suffix", [".obj", ".ply", ".stl"])
+def test_mesh_in_colmap_world_frame_projects_like_pycolmap(models, tmp_path, suffix):
+    v, f = _ellipsoid()
+    path = tmp_path / f"scan{suffix}"
+    _write_mesh(path, v, f)
+    ic.import_cameras(bpy.context.scene, models["bin"])
+    world = _import_mesh(path, **IDENTITY_AXES[suffix][1])
+    which, dist = _matched(world, v)
+    assert dist.max() < 1e-6 and set(which) == set(range(len(v)))  # coordinates unchanged
+    rec = pycolmap.Reconstruction(str(models["bin"]))
+    by_name = {rec.image(i).name: rec.image(i) for i in rec.reg_image_ids()}
+    worst = 0.0
+    for obj in _imported_cameras():
+        image = by_name[obj["brdf_image_name"]]
+        cam_pts = np.array([image.cam_from_world() * p for p in world])
+        expected = rec.camera(image.camera_id).img_from_cam(cam_pts)
+        err = np.abs(_blender_pixels(obj, world) - expected).max()
+        worst = max(worst, err)
+    print(f"\n{suffix}: {len(world)} vertices, max pixel difference {worst:.1e}")
+    assert worst < 0.01
+
+
+def test_obj_default_axes_would_move_the_mesh_off_the_cameras(models, tmp_path):
+    v, f = _ellipsoid()
+    path = tmp_path / "scan.obj"
+    _write_mesh(path, v, f)
+    ic.import_cameras(bpy.context.scene, models["bin"])
+    world = _import_mesh(path)  # the OBJ importer's defaults: forward -Z, up Y
+    # file (x, y, z) -> Blender (x, -z, y): a quarter turn about x
+    which, dist = _matched(world, v @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]]))
+    assert dist.max() < 1e-6
+    assert _matched(world, v)[1].max() > 0.1
+    rec = pycolmap.Reconstruction(str(models["bin"]))
+    by_name = {rec.image(i).name: rec.image(i) for i in rec.reg_image_ids()}
+    obj = _imported_cameras()[0]
+    image = by_name[obj["brdf_image_name"]]
+    truth = rec.camera(image.camera_id).img_from_cam(
+        np.array([image.cam_from_world() * p for p in v[which]])
+    )
+    assert np.linalg.norm(_blender_pixels(obj, world) - truth, axis=1).max() > 10.0

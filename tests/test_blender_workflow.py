@@ -17,7 +17,7 @@ import blender_scene as BS  # noqa: E402
 
 import brdf_reconstruct  # noqa: E402
 from brdf_reconstruct.brdf_addon import runner  # noqa: E402
-from brdf_reconstruct.core import merl, pipeline, sun  # noqa: E402
+from brdf_reconstruct.core import light_probe, merl, photo_io, pipeline, sun  # noqa: E402
 from brdf_reconstruct.operators import light, photos  # noqa: E402
 
 
@@ -107,8 +107,9 @@ def test_sun_below_the_horizon_is_one_clear_error(tiny):
         light.photo_light(tiny["scene"], p)
 
 
-def test_light_from_sphere_probe(tiny, tmp_path):
-    """A glossy sphere rendered by Cycles under the scene's Sun gives its direction."""
+def _probe_photo(tiny, tmp_path):
+    """A chrome sphere rendered by Cycles under the scene's Sun; the photo entry
+    set to use it."""
     p = _add_photo(tiny)
     scene = tiny["scene"]
     tiny["scan"].hide_render = True
@@ -130,9 +131,32 @@ def test_light_from_sphere_probe(tiny, tmp_path):
     scene.world = world
     BS.render_photo(scene, tmp_path / "probe.exr", size=96)
     p.light_source, p.probe_path = "PROBE", str(tmp_path / "probe.exr")
-    found = light.photo_light(scene, p)
+    return p
+
+
+def test_light_from_sphere_probe(tiny, tmp_path):
+    """A glossy sphere rendered by Cycles under the scene's Sun gives its direction."""
+    p = _probe_photo(tiny, tmp_path)
+    details = {}
+    found = light.photo_light(tiny["scene"], p, details)
     angle = math.degrees(math.acos(np.clip(found @ BS.LIGHT, -1, 1)))
-    assert angle < 2.0, angle
+    assert angle < 1.0, angle
+    assert details["sphere"] == "found" and angle < 2 * details["uncertainty_deg"]
+
+
+def test_light_from_a_user_drawn_probe_circle(tiny, tmp_path):
+    """A circle drawn 1.5 px off and 1.5 px too large is snapped to the outline: the
+    same light as the automatic circle."""
+    p = _probe_photo(tiny, tmp_path)
+    found = light.photo_light(tiny["scene"], p)
+    image = photo_io.read_photo(p.probe_path)
+    camera = light.camera_intrinsics(tiny["scene"], p.camera, 96, 96)
+    (cx, cy), r = light_probe.locate_sphere(image, camera=camera)
+    p.probe_center, p.probe_radius = (cx + 1.5, cy - 1.0), r + 1.5
+    details = {}
+    drawn = light.photo_light(tiny["scene"], p, details)
+    assert details["sphere"] == "given"
+    assert math.degrees(math.acos(np.clip(drawn @ found, -1, 1))) < 0.05
 
 
 # --- reconstruct ----------------------------------------------------------------

@@ -328,3 +328,39 @@ def test_fisheye_is_flagged_and_spherical_rejected(tmp_path):
     cm.synthetic_reconstruction(sphere, np.zeros((0, 3))).write(str(tmp_path / "s"))
     with pytest.raises(ValueError, match="EQUIRECTANGULAR"):
         cm.read_model(tmp_path / "s")
+
+
+def test_records_carry_the_model_params_and_the_helpers_agree(model_dirs):
+    model = cm.read_model(model_dirs[0]["txt"])
+    by_name = {v[0]: v for v in _views()}
+    for im in model.images:
+        _, name, params, *_ = by_name[im.name]
+        assert im.camera_model == name
+        assert im.params == tuple(float(p) for p in params)
+        assert all(isinstance(p, float) for p in im.params)
+        assert cm.pinhole_params(im.camera_model, im.params) == (im.fx, im.fy, im.cx, im.cy)
+        assert cm.is_distorted(im.camera_model, im.params) == im.distorted
+
+
+@pytest.mark.parametrize(
+    ("model", "params", "expected"),
+    [
+        ("SIMPLE_PINHOLE", [700, 240, 330], (700, 700, 240, 330)),
+        ("RADIAL", [650, 250, 190, 0.1, 0.0], (650, 650, 250, 190)),
+        ("FULL_OPENCV", [700, 720, 250, 200, *[0.0] * 8], (700, 720, 250, 200)),
+        ("OPENCV_FISHEYE", [300, 310, 250, 200, 0.1, 0, 0, 0], (300, 310, 250, 200)),
+        ("RADIAL_FISHEYE", [300, 250, 200, 0.0, 0.0], (300, 300, 250, 200)),
+    ],
+)
+def test_pinhole_params_of_any_model(model, params, expected):
+    assert cm.pinhole_params(model, params) == expected
+
+
+def test_camera_model_helpers_reject_bad_input():
+    with pytest.raises(ValueError, match="Unknown COLMAP camera model 'OPENCVX'"):
+        cm.is_distorted("OPENCVX", [1, 2, 3, 4])
+    with pytest.raises(ValueError, match="takes 4 parameters") as err:
+        cm.pinhole_params("PINHOLE", [1, 2, 3])
+    assert "\n" not in str(err.value)
+    with pytest.raises(ValueError, match="finite"):
+        cm.pycolmap_camera("PINHOLE", [1, 2, np.inf, 4])

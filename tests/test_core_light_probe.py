@@ -316,3 +316,174 @@ def _frame_with_z(z):
     a = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     x = _unit(np.cross(a, z))
     return np.column_stack([x, np.cross(z, x), z])
+
+
+# --- locating the sphere in the photo itself (locate_sphere, refine_sphere) -------
+
+CAM_SMALL = lp.PerspectiveCamera(focal_px=400.0, principal_px=(159.5, 119.5))
+BALL = np.array([0.9, -0.5, -6.5])  # off-axis: the outline is an ellipse
+BALL_LIGHT = _frame_with_z(-_unit(BALL)) @ _unit([0.5, 0.4, 0.75])  # 48 degrees off the view
+
+
+def render_probe_photo(kind, l, centre=BALL, cam=CAM_SMALL, shape=(240, 320), background=0.4,
+                       gain=200.0, noise=0.003, seed=0):
+    """A probe photo: a sphere (radius 1) in front of a plain background.
+
+    kind "black": a glossy black ball (0.02 plus 4 % of a sky and the light's lobe);
+    "chrome": a mirror showing a sky (0.3 to 0.5, brighter up) and the lobe.
+    background: a number, or an (H, W) array. Gaussian noise of `noise` is added.
+    """
+    l, centre = _unit(l), np.asarray(centre, dtype=np.float64)
+    f, (px, py) = cam.focal_px, cam.principal_px
+    img = np.zeros(shape)
+    for x, y in _subsamples(shape):
+        d = np.stack([(x - px) / f, -(y - py) / f, -np.ones_like(x)], axis=-1)
+        d /= np.linalg.norm(d, axis=-1, keepdims=True)
+        b = d @ centre
+        disc = b * b - (centre @ centre - 1.0)
+        hit = disc > 0.0
+        n = (b - np.sqrt(np.clip(disc, 0.0, None)))[..., None] * d - centre
+        r = d - 2.0 * np.sum(n * d, axis=-1, keepdims=True) * n
+        sky = 0.4 + 0.1 * r[..., 1]
+        lobe = gain * np.exp(-(1.0 - r @ l) / LOBE)
+        sphere = 0.02 + 0.04 * (sky + lobe) if kind == "black" else sky + lobe
+        img += np.where(hit, sphere, background)
+    img /= SS**2
+    return img + np.random.default_rng(seed).normal(0.0, noise, shape)
+
+
+def _circle_error(found, truth):
+    (cx, cy), r = found
+    (tx, ty), tr = truth
+    return np.hypot(cx - tx, cy - ty), abs(r - tr)
+
+
+@pytest.mark.parametrize(
+    ("kind", "background"),
+    [("black", 0.4), ("chrome", 0.05)],
+    ids=["black_on_grey", "chrome_on_dark"],
+)
+def test_locate_sphere_either_polarity(kind, background):
+    img = render_probe_photo(kind, BALL_LIGHT, background=background)
+    found = lp.locate_sphere(img, camera=CAM_SMALL)
+    dc, dr = _circle_error(found, outline_circle(BALL, CAM_SMALL))
+    assert dc < 0.1 and dr < 0.1
+    res = lp.light_from_sphere(img, *found, camera=CAM_SMALL)
+    assert _angle_deg(res.direction, BALL_LIGHT) < TOL_DEG
+
+
+def test_locate_sphere_ignores_hot_pixels_and_a_clipped_highlight():
+    img = np.minimum(render_probe_photo("black", BALL_LIGHT, gain=5000.0), 1.0)
+    rng = np.random.default_rng(4)
+    rows, cols = rng.integers(0, 240, 12), rng.integers(0, 320, 12)
+    img[rows, cols] = 1.0  # clipped hot pixels, on the wall and on the ball
+    found = lp.locate_sphere(img, camera=CAM_SMALL)
+    dc, dr = _circle_error(found, outline_circle(BALL, CAM_SMALL))
+    assert dc < 0.1 and dr < 0.1
+    res = lp.light_from_sphere(img, *found, camera=CAM_SMALL)
+    assert _angle_deg(res.direction, BALL_LIGHT) < TOL_DEG
+
+
+def test_locate_sphere_orthographic_disc():
+    shape, c_true, r_true = (200, 260), (140.4, 96.8), 61.3
+    cover = np.zeros(shape)
+    for x, y in _subsamples(shape):
+        cover += (x - c_true[0]) ** 2 + (y - c_true[1]) ** 2 < r_true**2
+    img = 0.5 - 0.45 * cover / SS**2  # a dark disc on grey, anti-aliased
+    (cx, cy), r = lp.locate_sphere(img)
+    assert np.hypot(cx - c_true[0], cy - c_true[1]) < 0.05 and abs(r - r_true) < 0.05
+
+
+def test_locate_sphere_with_a_clean_plate():
+    # The wall's left half is as dark as the ball: half its outline is invisible in the
+    # photo alone; the difference from the clean plate shows all of it.
+    wall = np.where(np.arange(320)[None, :] < 180, 0.03, 0.4) * np.ones((240, 1))
+    img = render_probe_photo("black", BALL_LIGHT, background=wall)
+    found = lp.locate_sphere(img, camera=CAM_SMALL, background=wall)
+    dc, dr = _circle_error(found, outline_circle(BALL, CAM_SMALL))
+    assert dc < 0.1 and dr < 0.1
+
+
+@pytest.mark.parametrize(
+    "image",
+    [
+        np.random.default_rng(1).normal(0.3, 0.01, (120, 160)),
+        np.pad(np.full((60, 60), 0.8), 40, constant_values=0.1),  # a square is no sphere
+    ],
+    ids=["noise", "square"],
+)
+def test_locate_sphere_no_sphere_is_one_clear_error(image):
+    with pytest.raises(ValueError, match="no sphere-like circle"):
+        lp.locate_sphere(image)
+
+
+def test_refine_sphere_snaps_an_off_circle():
+    img = render_probe_photo("black", BALL_LIGHT)
+    truth = outline_circle(BALL, CAM_SMALL)
+    (tx, ty), tr = truth
+    drawn = ((tx - 2.0, ty + 1.5), tr - 2.0)
+    off = lp.light_from_sphere(img, *drawn, camera=CAM_SMALL)
+    assert _angle_deg(off.direction, BALL_LIGHT) > 2.0  # what an off circle costs
+    found = lp.refine_sphere(img, *drawn, camera=CAM_SMALL, search_px=4.0)
+    dc, dr = _circle_error(found, truth)
+    assert dc < 0.1 and dr < 0.1
+    res = lp.light_from_sphere(img, *found, camera=CAM_SMALL)
+    assert _angle_deg(res.direction, BALL_LIGHT) < TOL_DEG
+    with pytest.raises(ValueError, match="no sphere outline found"):
+        lp.refine_sphere(img, (40.0, 40.0), 20.0, camera=CAM_SMALL)  # on the wall
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda img: lp.locate_sphere(img, radius_range_px=(50.0, 20.0)), "radius_range_px"),
+        (lambda img: lp.locate_sphere(img, background=np.zeros((10, 10))), "background"),
+        (lambda img: lp.locate_sphere(img[:10, :10]), "too small"),
+        (lambda img: lp.locate_sphere(np.where(img > 0.3, np.nan, img)), "NaN"),
+        (lambda img: lp.locate_sphere(img, camera="fisheye"), "camera"),
+        (lambda img: lp.refine_sphere(img, (160.0, 120.0), 60.0, search_px=0.1), "search_px"),
+        (lambda img: lp.light_from_sphere(img, (160.0, 120.0), 60.0, circle_sigma_px=-1),
+         "circle_sigma_px"),
+    ],
+    ids=["radius_range", "background_shape", "too_small", "nan", "camera", "search", "sigma"],
+)
+def test_locate_and_refine_argument_errors(call, match):
+    with pytest.raises(ValueError, match=match):
+        call(render_probe_photo("black", BALL_LIGHT, noise=0.0))
+
+
+# --- the highlight: sub-pixel, hot pixels; the uncertainty ------------------------
+
+def _point_highlight(shape, at, peak, sigma=0.7, floor=0.05):
+    """A point light's reflection spread by a Gaussian pixel filter (sigma px)."""
+    rows, cols = np.indices(shape, dtype=np.float64)
+    r2 = (cols - at[0]) ** 2 + (rows - at[1]) ** 2
+    return floor + peak * np.exp(-r2 / (2 * sigma**2))
+
+
+@pytest.mark.parametrize("at", [(50.3, 40.7), (50.1, 40.9), (50.45, 40.2)])
+def test_sub_pixel_highlight_is_not_quantised(at):
+    # Only the peak pixel or two reach half the peak: a centroid of those alone
+    # was off by 0.1 to 0.3 px (about 0.5 degree on a 70 px sphere).
+    img = _point_highlight((100, 100), at, 1000.0)
+    (hx, hy), _ = lp.find_highlight(img, (50.0, 50.0), 45.0)
+    assert abs(hx - at[0]) < 0.01 and abs(hy - at[1]) < 0.01
+
+
+def test_hot_pixel_brighter_than_the_highlight_is_ignored():
+    at = (60.4, 35.2)
+    img = _point_highlight((100, 100), at, 100.0)
+    img[70, 30] = 1e4  # a hot pixel on the sphere, 100 x the highlight
+    (hx, hy), _ = lp.find_highlight(img, (50.0, 50.0), 45.0)
+    assert abs(hx - at[0]) < 0.05 and abs(hy - at[1]) < 0.05
+
+
+def test_uncertainty_grows_with_the_circle_error_and_bounds_it():
+    img = render_probe_photo("black", BALL_LIGHT)
+    c, r = outline_circle(BALL, CAM_SMALL)
+    uncs = [lp.light_from_sphere(img, c, r, camera=CAM_SMALL, circle_sigma_px=s).uncertainty_rad
+            for s in (0.0, 0.25, 2.0)]
+    assert 0.0 < uncs[0] < uncs[1] < uncs[2]
+    # a circle 2 px off (centre and radius): the error it causes is within its uncertainty
+    off = lp.light_from_sphere(img, (c[0] + 2.0, c[1]), r + 2.0, camera=CAM_SMALL)
+    assert _angle_deg(off.direction, BALL_LIGHT) < np.degrees(uncs[2])

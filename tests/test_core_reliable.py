@@ -60,6 +60,48 @@ def test_removals_are_counted(scene):
     assert len(s) + sum(r.values()) == truth.mask.size
 
 
+def test_saturated_pixels_from_the_white_level_mask_are_removed_and_counted(scene):
+    """A camera's saturation found on the file's codes (photo_io.Photo.saturated)
+    rides along as a mask: those pixels are never fitted, whatever their value."""
+    truth, _ = scene
+    light = np.array([0.0, 0.0, 1.0])
+    photo = synthetic.photo(_lambert_table(), truth, light)
+    saturated = np.zeros(truth.mask.shape, dtype=bool)
+    saturated[40:44, 50:60] = True  # 40 pixels at the white level
+    plain = _observe(photo, truth, light)
+    s = _observe(photo, truth, light, saturated=saturated)
+    assert s.removed["saturated"] == 40 and plain.removed["saturated"] == 0
+    assert len(s) == len(plain) - 40
+    kept = {tuple(px) for px in s.pixel}
+    assert not any((r, c) in kept for r in range(40, 44) for c in range(50, 60))
+    # with a clip level too, a pixel is saturated by either rule, counted once
+    photo[40, 50] = photo[10, 10] = 50.0
+    both = _observe(photo, truth, light, saturated=saturated,
+                    settings=observations.ObservationSettings(clip_level=10.0))
+    assert both.removed["saturated"] == 41
+    with pytest.raises(ValueError, match="saturated must have shape"):
+        _observe(photo, truth, light, saturated=saturated[:-1])
+
+
+def test_saturated_mask_turns_off_the_brightest_peak_in_the_pipeline(scene):
+    """pipeline.saturated_pixels counts the mask, so Eq. 2 is skipped as with a clip."""
+    from brdf_reconstruct.core import pipeline
+
+    truth, _ = scene
+    light = np.array([0.0, 0.0, 1.0])
+    saturated = np.zeros(truth.mask.shape, dtype=bool)
+    saturated[:3] = True
+    p = pipeline.PhotoInput(photo=synthetic.photo(_lambert_table(), truth, light),
+                            normal=truth.normal, position=truth.position,
+                            visibility=np.ones(truth.mask.shape),
+                            region=np.zeros(truth.mask.shape, dtype=int),
+                            camera_center=truth.camera_center, light=light,
+                            saturated=saturated)
+    assert pipeline.saturated_pixels([p], 0, None) == 3 * 96
+    assert pipeline.saturated_pixels([p], 0, 1e9) == 3 * 96
+    assert pipeline.saturated_pixels([p], 1, None) == 0
+
+
 def test_extreme_all_saturated_photo(scene):
     truth, _ = scene
     photo = np.full(truth.mask.shape + (3,), 100.0)

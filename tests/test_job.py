@@ -62,6 +62,36 @@ image = "lit/probe.exr"
     assert job.photos[1]["light"]["probe"]["image"] == folder / "lit/probe.exr"
 
 
+def test_real_capture_keys(folder):
+    """A photo without a camera (matched later by image name), EXIF-driven sun, a
+    user-drawn probe circle, colour space, exposure, grey card and the scene's up."""
+    job = _load(folder, """
+mesh = "scan.ply"
+mesh_up = "y"
+up = "cameras"
+[[photo]]
+image = "lit/0012.exr"
+color_space = "sRGB"
+exposure = 0.5
+grey_card = "lit/probe.exr"
+[photo.sun]
+utc_offset = 2.0
+[[photo]]
+image = "lit/0012.exr"
+camera = "cam"
+[photo.probe]
+image = "lit/probe.exr"
+center = [120.5, 80.0]
+radius = 33.0
+""")
+    assert job.mesh_up == "Y" and job.up == "cameras"
+    first, second = job.photos
+    assert "camera" not in first and first["color_space"] == "SRGB"
+    assert first["exposure"] == 0.5 and first["grey_card"] == folder / "lit/probe.exr"
+    assert first["light"] == {"sun": {"utc_offset": 2.0}}
+    assert second["light"]["probe"]["center"] == [120.5, 80.0]
+
+
 @pytest.mark.parametrize("text, message", [
     ('object = "S"\n[[photo]]\nimage = "lit/none.exr"\ncamera = "c"', "photo 1 image not found"),
     ('object = "S"', r"no \[\[photo\]\] entries"),
@@ -69,7 +99,17 @@ image = "lit/probe.exr"
     ('mesh = "scan.ply"\nobject = "S"', "either mesh or object"),
     ('object = "S"\nfoo = 1', "unknown keys: foo"),
     ('object = "S"\n[settings]\nsampels = 3', "unknown settings: sampels"),
-    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"', "needs image and camera"),
+    ('object = "S"\n[[photo]]\ncamera = "0013.jpg"', "camera 0013.jpg has no photo"),
+    ('object = "S"\n[[photo]]\nlight = [0, 0, 1]', "photo 1 needs an image"),
+    ('object = "S"\nmesh_up = "X"', "mesh_up must be"),
+    ('object = "S"\nup = "sky"', "up must be"),
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\ncolor_space = "rec709"',
+     "color_space must be"),
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\nexposure = -1', "exposure must be"),
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\n[photo.sun]\ndate = "x"\ntime = 1',
+     r"\[photo.sun\] has unknown keys: time"),
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\ngrey_card = "lit/0012.exr"\n'
+     'reference_region = "lit/0012.exr"', "both grey_card and reference_region"),
     ('object = [', "not valid TOML"),
 ])
 def test_mistakes_are_one_sentence(folder, text, message):

@@ -1,0 +1,196 @@
+"""A lit photo as a camera produced it, made ready for ``core.pipeline`` (bpy glue).
+
+For each entry of ``scene.brdf.photos`` :func:`gather_photo`:
+
+1. reads the file as linear radiance (``core.photo_io``: EXR and 16/32-bit TIFF
+   linear, 8/16-bit PNG and JPEG sRGB unless the file or the user says linear,
+   camera RAW only where OpenImageIO has LibRaw) and its saturated pixels (the
+   file's largest code, or the Saturation Level setting, on the file's own
+   values);
+2. reads the mask image, refuses NaN or Inf inside it (one sentence);
+3. checks the photo's size against its camera's: the same, or the same aspect
+   ratio scaled (said in the report); anything else is an error;
+4. undistorts photo, masks and saturation through the COLMAP camera model
+   (``core.undistort``) when the camera has lens distortion, so the pixels line
+   up with the Blender (pinhole) camera;
+5. finds the light (``operators.light.photo_light``) and renders the G-buffers;
+   the scan's silhouette is the mask, shrunk by the photo's silhouette margin;
+6. applies the exposure scale (user, or EXIF shutter/aperture/ISO through
+   ``core.exif``; :func:`exposure_plan` decides for all photos at once);
+7. gathers the irradiance reference (grey card or diffuse region of the scan),
+   which :func:`apply_irradiance` turns into per-photo irradiance ratios
+   (``core.irradiance``).
+
+Every step says what it applied in the photo's ``report`` dict, which goes to
+``report.json`` as ``capture``. Nothing of the user's is changed: files are only
+read.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import bpy
+import numpy as np
+from scipy import ndimage
+
+from ..core import exif, irradiance, photo_io, pipeline, undistort
+from ..operators import light as light_ops
+from . import gbuffer, prefs
+
+
+@dataclasses.dataclass
+class GatheredPhoto:
+    """One photo made ready: the pipeline's input, what was applied (JSON-friendly),
+    and its irradiance reference (None without one)."""
+
+    input: pipeline.PhotoInput
+    report: dict
+    reference: irradiance.Reference | None = None
+
+
+def exposure_plan(scene) -> tuple[np.ndarray, list[str]]:
+    """(N,) exposure scales of ``scene.brdf.photos`` onto the first photo's scale,
+    and one note per photo. A photo's own Exposure Scale (> 0) wins over its EXIF;
+    ValueError (one sentence) when EXIF is present on some photos and missing on
+    others that have no scale of their own."""
+    photos = list(scene.brdf.photos)
+    exposures = [exif.exposure_settings(photo_io.read_metadata(bpy.path.abspath(p.filepath)))
+                 for p in photos]
+    user = [p.exposure if p.exposure > 0 else None for p in photos]
+    return exif.exposure_scales(exposures, user, names=[p.name for p in photos])
+
+
+def camera_size(scene, camera) -> tuple[tuple[int, int], str]:
+    """The (width, height) in pixels a camera's photos should have, and where that
+    came from: the COLMAP import's ``brdf_width`` / ``brdf_height``, else the
+    scene's render size (as the Photogrammetry Importer and others set it)."""
+    if "brdf_width" in camera and "brdf_height" in camera:
+        return (int(camera["brdf_width"]), int(camera["brdf_height"])), "camera"
+    r = scene.render
+    scale = r.resolution_percentage / 100.0
+    return (int(r.resolution_x * scale), int(r.resolution_y * scale)), "scene render size"
+
+
+def check_size(name: str, camera_name: str, photo_size, want, source: str) -> str:
+    """'' when the photo is its camera's size, a note when it is the same aspect
+    ratio scaled; ValueError (one sentence) otherwise. Sizes are (width, height)."""
+    (w, h), (cw, ch) = photo_size, want
+    if (w, h) == (cw, ch):
+        return ""
+    if abs(h - ch * w / cw) < 1.0 and abs(w - cw * h / ch) < 1.0:
+        return (f"{w}x{h} pixels, {w / cw:.4g} times its camera's {cw}x{ch}: the camera "
+                "is scaled to the photo")
+    raise ValueError(f"photo {name} is {w}x{h} pixels but its camera {camera_name} is "
+                     f"{cw}x{ch} ({source}), a different aspect ratio")
+
+
+def gather_photo(scene, photo, exposure_scale: float = 1.0,
+                 exposure_note: str = "") -> GatheredPhoto:
+    """One photo: read, checked, undistorted, lit, G-buffers, exposure, reference.
+    Raises ValueError (one sentence) for a bad photo."""
+    settings = scene.brdf
+    path = bpy.path.abspath(photo.filepath)
+    read = photo_io.read_photo_file(path, photo.color_space)
+    radiance, saturated = read.radiance, read.saturated
+    h, w = radiance.shape[:2]
+    report = {"name": photo.name, "file": path, "format": read.file_format,
+              "bit_depth": read.bit_depth, "encoding": read.encoding,
+              "encoding_reason": read.encoding_reason}
+    mask = None
+    if photo.mask_path:
+        mask = photo_io.read_mask(bpy.path.abspath(photo.mask_path), (h, w))
+    photo_io.check_finite(radiance, photo.name, mask)
+    if settings.clip_level > 0:  # on the file's values, before any scaling
+        saturated = saturated | np.any(radiance >= settings.clip_level, axis=-1)
+    want, source = camera_size(scene, photo.camera)
+    note = check_size(photo.name, photo.camera.name, (w, h), want, source)
+    if note:
+        report["scaled"] = note
+    reference_mask = None
+    if photo.reference_kind != "NONE":
+        if not photo.reference_mask_path:
+            raise ValueError(f"photo {photo.name} has an irradiance reference but no "
+                             "reference mask")
+        reference_mask = photo_io.read_mask(bpy.path.abspath(photo.reference_mask_path),
+                                            (h, w))
+    if photo.camera.get("brdf_colmap_distorted"):
+        model = str(photo.camera["brdf_colmap_camera_model"])
+        params = [float(x) for x in photo.camera["brdf_colmap_params"]]
+        args = (model, params, *want)
+        radiance = undistort.undistort_image(radiance, *args)
+        saturated = undistort.undistort_mask(saturated, *args)
+        if mask is not None:
+            mask = undistort.undistort_mask(mask, *args)
+        if reference_mask is not None:
+            reference_mask = undistort.undistort_mask(reference_mask, *args)
+        report["undistorted"] = f"{model} {np.round(params, 6).tolist()}"
+    light_details = {}
+    light = light_ops.photo_light(scene, photo, light_details)
+    report["light"] = light_details | {"direction": light.tolist()}
+    attribute = ("material_index" if settings.region_mode == "MATERIAL_SLOT"
+                 else gbuffer.FACE_SET_ATTRIBUTE)
+    g = gbuffer.render_gbuffers(settings.target, photo.camera, light, resolution=(w, h),
+                                device=prefs.cycles_device(), region_attribute=attribute)
+    if not g.mask.any():
+        raise ValueError(f"the scan is not in view of photo {photo.name}'s camera")
+    cosine = np.einsum("hwc,c->hw", g.normal, light)
+    if not np.any(cosine[g.mask] > 0):
+        raise ValueError(f"the light of photo {photo.name} is below every surface of the scan")
+    if photo.silhouette_margin > 0:
+        inside = ndimage.binary_erosion(g.mask, iterations=photo.silhouette_margin)
+        mask = inside if mask is None else mask & inside
+        report["silhouette_margin_px"] = int(photo.silhouette_margin)
+    if exposure_scale != 1.0:
+        radiance = radiance * exposure_scale
+    report["exposure_scale"] = float(exposure_scale)
+    if exposure_note:
+        report["exposure"] = exposure_note
+    report["saturated_pixels"] = int(np.count_nonzero(saturated & g.mask))
+    reference = None
+    if reference_mask is not None:
+        if photo.reference_kind == "SCAN":  # n.l of the scan, from its G-buffer
+            region = reference_mask & g.mask
+            reference = irradiance.Reference(radiance=radiance[region], cosine=cosine[region],
+                                             saturated=saturated[region])
+        else:  # a grey card facing the light
+            region = reference_mask
+            reference = irradiance.grey_card(radiance[region], 1.0, saturated[region])
+        report["reference"] = {"kind": photo.reference_kind.lower(),
+                               "pixels": int(np.count_nonzero(region))}
+    return GatheredPhoto(
+        input=pipeline.PhotoInput(
+            photo=radiance, normal=g.normal, position=g.position, visibility=g.visibility,
+            region=g.region, camera_center=g.camera_center, light=light,
+            irradiance=np.array(photo.irradiance, dtype=np.float64), mask=mask,
+            name=photo.name, saturated=saturated),
+        report=report, reference=reference)
+
+
+def apply_irradiance(gathered: list[GatheredPhoto]) -> tuple[list[pipeline.PhotoInput], list]:
+    """The pipeline inputs with each photo's irradiance from the references: the
+    first photo keeps its own, the others get it times their ratio to it
+    (``core.irradiance.relative_irradiance``). Without references the irradiances
+    stay as given, and the note says whether that means equal. Returns (inputs,
+    notes)."""
+    references = [g.reference for g in gathered]
+    if all(r is None for r in references):
+        given = np.array([np.asarray(g.input.irradiance, dtype=np.float64) for g in gathered])
+        if np.allclose(given, given[0], rtol=0, atol=0):
+            return [g.input for g in gathered], [
+                "no grey card or reference region: irradiance assumed equal across photos"]
+        return [g.input for g in gathered], ["no grey card or reference region: irradiance "
+                                             "as given per photo"]
+    ratios, notes = irradiance.relative_irradiance(
+        references, names=[g.input.name for g in gathered])
+    base = np.asarray(gathered[0].input.irradiance, dtype=np.float64)
+    inputs = []
+    for g, ratio in zip(gathered, ratios, strict=True):
+        e = base * ratio
+        if not np.all(np.isfinite(e)) or not np.all(e > 0):
+            raise ValueError(f"the irradiance reference of photo {g.input.name} gives no "
+                             "usable irradiance (is it dark or saturated?)")
+        g.report["irradiance"] = e.tolist()
+        inputs.append(dataclasses.replace(g.input, irradiance=e))
+    return inputs, notes
+
