@@ -125,7 +125,7 @@ def probe_result(scene, photo) -> light_probe.LightProbeResult:
         raise ValueError(f"photo {photo.name} has no sphere-probe photo")
     if photo.camera is None:
         raise ValueError(f"photo {photo.name} has no camera for its probe")
-    image = photo_io.read_photo(bpy.path.abspath(photo.probe_path))
+    image = photo_io.read_photo_file(bpy.path.abspath(photo.probe_path)).radiance
     h, w = image.shape[:2]
     camera = camera_intrinsics(scene, photo.camera, w, h)
     if photo.probe_radius > 0:  # the user's circle, snapped to the sphere's outline

@@ -14,8 +14,8 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 import blender_scene as BS  # noqa: E402
+from image_files import write_image  # noqa: E402
 
-import brdf_reconstruct  # noqa: E402
 from brdf_reconstruct.brdf_addon import runner  # noqa: E402
 from brdf_reconstruct.core import photo_io, sun  # noqa: E402
 from brdf_reconstruct.operators import light, photos  # noqa: E402
@@ -23,31 +23,11 @@ from brdf_reconstruct.operators import light, photos  # noqa: E402
 
 @pytest.fixture
 def tiny(tmp_path):
-    built = BS.build(tmp_path)
-    brdf_reconstruct.register()
-    BS.settings_for_tiny_runs(built, tmp_path / "out")
-    built["linear"] = photo_io.read_photo(built["photo"])
-    try:
+    with BS.registered(tmp_path) as built:
+        built["linear"] = photo_io.read_photo(built["photo"])
         yield built
-    finally:
-        brdf_reconstruct.unregister()
 
 
-def _write(path, pixels, fmt, attributes=()):
-    """Write (H, W, C) pixels with OpenImageIO, with optional metadata attributes."""
-    pixels = np.ascontiguousarray(pixels)
-    h, w, c = pixels.shape
-    spec = oiio.ImageSpec(w, h, c, fmt)
-    for name, value in attributes:
-        if isinstance(value, tuple):  # GPS degrees, minutes, seconds
-            spec.attribute(name, oiio.TypeDesc(f"float[{len(value)}]"), value)
-        else:
-            spec.attribute(name, value)
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), spec), oiio.geterror()
-    assert out.write_image(pixels)
-    out.close()
-    return path
 
 
 def _entry(built, path, camera=None):
@@ -75,7 +55,7 @@ def _srgb_8bit(linear):
 # --- each bad input: its own one-line error ---------------------------------------
 
 def test_8bit_photo_declared_linear_is_one_clear_error(tiny):
-    path = _write(tiny["dir"] / "view0.png", _srgb_8bit(tiny["linear"]), oiio.UINT8)
+    path = write_image(tiny["dir"] / "view0.png", _srgb_8bit(tiny["linear"]), oiio.UINT8)
     p = _entry(tiny, path)
     p.color_space = "LINEAR"
     _reconstruct_error(r"view0\.png is 8-bit")
@@ -94,7 +74,7 @@ def test_camera_with_no_photo_is_one_clear_error(tiny):
 
 
 def test_resolution_mismatch_is_one_clear_error(tiny):
-    path = _write(tiny["dir"] / "crop.exr", tiny["linear"][:40].astype(np.float32),
+    path = write_image(tiny["dir"] / "crop.exr", tiny["linear"][:40].astype(np.float32),
                   oiio.FLOAT)
     _entry(tiny, path)
     _reconstruct_error(r"crop\.exr is 48x40 pixels but its camera view0 is 48x48")
@@ -111,7 +91,7 @@ def test_corrupt_file_is_one_clear_error(tiny):
 def test_nan_in_an_exr_is_one_clear_error(tiny):
     photo = tiny["linear"].astype(np.float32)
     photo[20:22, 20:23] = np.nan
-    path = _write(tiny["dir"] / "nan.exr", photo, oiio.FLOAT)
+    path = write_image(tiny["dir"] / "nan.exr", photo, oiio.FLOAT)
     _entry(tiny, path)
     _reconstruct_error(r"nan\.exr has 6 pixels with NaN or Inf")
 
@@ -128,7 +108,7 @@ def test_light_below_every_surface_is_one_clear_error(tiny):
 
 def test_scaled_photo_is_allowed_and_said(tiny):
     twice = np.repeat(np.repeat(tiny["linear"], 2, axis=0), 2, axis=1).astype(np.float32)
-    path = _write(tiny["dir"] / "twice.exr", twice, oiio.FLOAT)
+    path = write_image(tiny["dir"] / "twice.exr", twice, oiio.FLOAT)
     _entry(tiny, tiny["photo"])
     _entry(tiny, path)
     inputs, capture = runner.gather_capture(tiny["scene"])
@@ -147,10 +127,10 @@ def test_exposure_from_exif_brings_photos_to_one_scale(tiny):
     against f/4 (two stops more) and ISO 200 against 100 (one stop more): the second
     file holds twice the first's values; after normalisation they agree."""
     linear = tiny["linear"].astype(np.float32)
-    first = _write(tiny["dir"] / "a.exr", linear, oiio.FLOAT,
+    first = write_image(tiny["dir"] / "a.exr", linear, oiio.FLOAT,
                    [("ExposureTime", 0.01), ("FNumber", 8.0),
                     ("Exif:PhotographicSensitivity", 100)])
-    second = _write(tiny["dir"] / "b.exr", linear * 2.0, oiio.FLOAT,
+    second = write_image(tiny["dir"] / "b.exr", linear * 2.0, oiio.FLOAT,
                     [("ExposureTime", 0.0025), ("FNumber", 4.0),
                      ("Exif:PhotographicSensitivity", 200)])
     _entry(tiny, first)
@@ -172,9 +152,9 @@ def test_irradiance_ratio_from_a_diffuse_region_of_the_scan(tiny):
     """A second photo under 2.5 times the irradiance (the same picture, brighter),
     with the scan's diffuse region as the reference: its irradiance becomes 2.5
     times the first photo's, found from the photos alone."""
-    bright = _write(tiny["dir"] / "bright.exr", (tiny["linear"] * 2.5).astype(np.float32),
+    bright = write_image(tiny["dir"] / "bright.exr", (tiny["linear"] * 2.5).astype(np.float32),
                     oiio.FLOAT)
-    everywhere = _write(tiny["dir"] / "all.png", np.full((48, 48, 1), 255, np.uint8),
+    everywhere = write_image(tiny["dir"] / "all.png", np.full((48, 48, 1), 255, np.uint8),
                         oiio.UINT8)
     for path in (tiny["photo"], bright):
         p = _entry(tiny, path)
@@ -196,7 +176,7 @@ def test_saturated_pixels_of_an_8bit_photo_are_excluded_and_counted(tiny):
     """Exposed 3 times too long, the sphere's bright side clips at 255: those pixels
     are counted and never reach the fit."""
     codes = _srgb_8bit(tiny["linear"] * 3.0)
-    path = _write(tiny["dir"] / "hot.png", codes, oiio.UINT8)
+    path = write_image(tiny["dir"] / "hot.png", codes, oiio.UINT8)
     _entry(tiny, path)
     inputs, capture = runner.gather_capture(tiny["scene"])
     clipped = np.any(codes == 255, axis=-1) & (inputs[0].region >= 0)
@@ -226,7 +206,7 @@ def test_silhouette_margin_shrinks_the_mask(tiny):
 def test_sun_from_exif_time_and_gps_place(tiny):
     when = dt.datetime(2026, 6, 21, 15, 30, 0, tzinfo=dt.timezone(dt.timedelta(hours=2)))
     lat, lon = 48.1375, -11.575  # 48 8' 15" N, 11 34' 30" W
-    path = _write(tiny["dir"] / "sun.exr", tiny["linear"].astype(np.float32), oiio.FLOAT, [
+    path = write_image(tiny["dir"] / "sun.exr", tiny["linear"].astype(np.float32), oiio.FLOAT, [
         ("Exif:DateTimeOriginal", "2026:06:21 15:30:00"), ("Exif:OffsetTimeOriginal", "+02:00"),
         ("GPS:LatitudeRef", "N"), ("GPS:LongitudeRef", "W"),
         ("GPS:Latitude", (48.0, 8.0, 15.0)), ("GPS:Longitude", (11.0, 34.0, 30.0))])
@@ -280,7 +260,7 @@ def test_distorted_photo_is_undistorted_onto_the_blender_camera(tiny):
     distorted = np.stack([ndimage.map_coordinates(truth[..., c], [xy[:, 1], xy[:, 0]],
                                                   order=1, mode="nearest")
                           for c in range(3)], axis=-1).reshape(truth.shape)
-    path = _write(tiny["dir"] / "lens.exr", distorted.astype(np.float32), oiio.FLOAT)
+    path = write_image(tiny["dir"] / "lens.exr", distorted.astype(np.float32), oiio.FLOAT)
     cam = tiny["camera"]
     cam["brdf_colmap_distorted"], cam["brdf_colmap_camera_model"] = True, "SIMPLE_RADIAL"
     cam["brdf_colmap_params"] = params

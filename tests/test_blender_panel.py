@@ -139,6 +139,33 @@ def test_photos_added_each_light_source(scene):
     assert ("prop", "latitude") in calls
 
 
+def _tuples(calls):
+    """The (kind, name) calls, for set comparisons (layout calls carry dicts)."""
+    return {c for c in calls if all(isinstance(x, str) for x in c)}
+
+
+def test_real_capture_fields_show_when_they_apply(scene):
+    """The probe circle shows once a radius is given; typed date and place hide when
+    they come from EXIF; the reference mask shows with a reference."""
+    photo = _with_photo(scene)
+    photo.light_source = "PROBE"
+    assert ("prop", "probe_center") not in _tuples(_draw_all(bpy.context))
+    photo.probe_radius = 40.0
+    assert ("prop", "probe_center") in _tuples(_draw_all(bpy.context))
+    photo.light_source = "SUN_POSITION"
+    calls = _tuples(_draw_all(bpy.context))
+    assert {("prop", "when"), ("prop", "latitude"), ("prop", "scene_up"),
+            ("operator", "brdf.up_from_cameras")} <= calls
+    photo.time_from_exif = photo.place_from_exif = True
+    calls = _tuples(_draw_all(bpy.context))
+    assert ("prop", "when") not in calls and ("prop", "latitude") not in calls
+    assert ("prop", "reference_mask_path") not in calls
+    photo.reference_kind = "CARD"
+    calls = _tuples(_draw_all(bpy.context))
+    assert {("prop", "reference_mask_path"), ("prop", "color_space"),
+            ("prop", "exposure"), ("prop", "silhouette_margin")} <= calls
+
+
 def test_settings_for_each_selection_path(scene):
     for path in ("FAST", "CYCLES"):
         scene.brdf.kl_path = path

@@ -15,7 +15,6 @@ bpy = pytest.importorskip("bpy")
 
 import blender_scene as BS  # noqa: E402
 
-import brdf_reconstruct  # noqa: E402
 from brdf_reconstruct.brdf_addon import runner  # noqa: E402
 from brdf_reconstruct.core import light_probe, merl, photo_io, pipeline, sun  # noqa: E402
 from brdf_reconstruct.operators import light, photos  # noqa: E402
@@ -23,13 +22,8 @@ from brdf_reconstruct.operators import light, photos  # noqa: E402
 
 @pytest.fixture
 def tiny(tmp_path):
-    built = BS.build(tmp_path)
-    brdf_reconstruct.register()
-    BS.settings_for_tiny_runs(built, tmp_path / "out")
-    try:
+    with BS.registered(tmp_path) as built:
         yield built
-    finally:
-        brdf_reconstruct.unregister()
 
 
 def _add_photo(built):

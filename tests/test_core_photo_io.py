@@ -3,16 +3,9 @@
 import numpy as np
 import OpenImageIO as oiio
 import pytest
+from image_files import write_image
 
 from brdf_reconstruct.core import database, photo_io, pictures
-
-
-def _write(path, pixels, fmt):
-    h, w, c = pixels.shape
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), oiio.ImageSpec(w, h, c, fmt))
-    out.write_image(pixels)
-    out.close()
 
 
 def test_srgb_decoding_matches_the_standard():
@@ -24,14 +17,14 @@ def test_srgb_decoding_matches_the_standard():
 def test_png_is_decoded_from_srgb_exr_is_linear(tmp_path):
     rng = np.random.default_rng(0)
     png = rng.integers(0, 256, (5, 7, 3)).astype(np.uint8)
-    _write(tmp_path / "a.png", png, oiio.UINT8)
+    write_image(tmp_path / "a.png", png, oiio.UINT8)
     np.testing.assert_allclose(photo_io.read_photo(tmp_path / "a.png"),
                                photo_io.srgb_to_linear(png / 255.0), atol=1e-7)
     np.testing.assert_allclose(photo_io.read_photo(tmp_path / "a.png", linear=True),
                                png / 255.0, atol=1e-7)
     exr = rng.random((5, 7, 3)).astype(np.float32) * 40.0
     exr[1, 2, 0] = np.nan
-    _write(tmp_path / "a.exr", exr, oiio.FLOAT)
+    write_image(tmp_path / "a.exr", exr, oiio.FLOAT)
     back = photo_io.read_photo(tmp_path / "a.exr")
     assert back.dtype == np.float64 and back.shape == (5, 7, 3)
     np.testing.assert_array_equal(back, exr.astype(np.float64))  # NaN kept for observe
@@ -39,7 +32,7 @@ def test_png_is_decoded_from_srgb_exr_is_linear(tmp_path):
 
 def test_grey_image_becomes_rgb(tmp_path):
     grey = np.linspace(0, 1, 12, dtype=np.float32).reshape(3, 4, 1)
-    _write(tmp_path / "g.exr", grey, oiio.FLOAT)
+    write_image(tmp_path / "g.exr", grey, oiio.FLOAT)
     rgb = photo_io.read_photo(tmp_path / "g.exr")
     assert rgb.shape == (3, 4, 3) and np.all(rgb[..., 0] == rgb[..., 2])
 
@@ -55,7 +48,7 @@ def test_bad_files_are_one_sentence(tmp_path):
 def test_mask_size_must_match_the_photo(tmp_path):
     m = np.zeros((4, 6, 1), dtype=np.uint8)
     m[1:3, 2:5] = 255
-    _write(tmp_path / "m.png", m, oiio.UINT8)
+    write_image(tmp_path / "m.png", m, oiio.UINT8)
     mask = photo_io.read_mask(tmp_path / "m.png", (4, 6))
     assert mask.sum() == 6 and mask[1, 2] and not mask[0, 0]
     with pytest.raises(ValueError, match="but its photo is 5x5"):
@@ -91,19 +84,6 @@ def test_reliable_overlay_colours_kept_and_dropped_pixels():
 # ---------------------------------------------------------------------------
 # read_photo_file: photos as cameras produce them
 
-def _write_attrs(path, pixels, fmt, attrs=None):
-    """Write pixels (H, W, C) with OpenImageIO, setting string/int/float/tuple attributes."""
-    h, w, c = pixels.shape
-    spec = oiio.ImageSpec(w, h, c, fmt)
-    for key, value in (attrs or {}).items():
-        if isinstance(value, tuple):
-            spec.attribute(key, oiio.TypeDesc(f"float[{len(value)}]"), value)
-        else:
-            spec.attribute(key, value)
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), spec), oiio.geterror()
-    assert out.write_image(pixels)
-    out.close()
 
 
 def _png_bytes(path, codes, chunks=()):
@@ -143,7 +123,7 @@ def test_float_exr_is_linear_with_nan_and_inf_kept_and_counted(tmp_path):
     exr = (rng.random((6, 8, 3)) * 50.0).astype(np.float32)
     exr[1, 2, 0] = np.nan
     exr[4, 5, 2] = np.inf
-    _write(tmp_path / "f.exr", exr, oiio.FLOAT)
+    write_image(tmp_path / "f.exr", exr, oiio.FLOAT)
     photo = photo_io.read_photo_file(tmp_path / "f.exr")
     assert photo.radiance.dtype == np.float64 and photo.radiance.shape == (6, 8, 3)
     np.testing.assert_array_equal(photo.radiance, exr.astype(np.float64))
@@ -158,7 +138,7 @@ def test_float_exr_is_linear_with_nan_and_inf_kept_and_counted(tmp_path):
 
 def test_half_exr_is_linear_and_16_bit(tmp_path):
     values = (np.random.default_rng(3).random((5, 4, 3)) * 8.0).astype(np.float16)
-    _write(tmp_path / "h.exr", values.astype(np.float32), oiio.HALF)
+    write_image(tmp_path / "h.exr", values.astype(np.float32), oiio.HALF)
     photo = photo_io.read_photo_file(tmp_path / "h.exr")
     np.testing.assert_array_equal(photo.radiance, values.astype(np.float64))
     assert (photo.bit_depth, photo.is_float, photo.encoding) == (16, True, "linear")
@@ -168,7 +148,7 @@ def test_16_bit_tiff_is_linear_code_over_65535_exactly(tmp_path):
     codes = np.random.default_rng(4).integers(0, 65536, (7, 5, 3)).astype(np.uint16)
     codes[0, 0] = [65535, 0, 12]
     codes[3, 1, 2] = 65535
-    _write(tmp_path / "t16.tif", codes, oiio.UINT16)
+    write_image(tmp_path / "t16.tif", codes, oiio.UINT16)
     photo = photo_io.read_photo_file(tmp_path / "t16.tif")
     expected = codes.astype(np.float64) / 65535.0
     np.testing.assert_array_equal(photo.radiance, expected)  # float64, not float32-rounded
@@ -182,7 +162,7 @@ def test_16_bit_tiff_is_linear_code_over_65535_exactly(tmp_path):
 
 def test_float_tiff_is_linear(tmp_path):
     values = (np.random.default_rng(5).random((4, 6, 3)) * 3.0 - 0.5).astype(np.float32)
-    _write(tmp_path / "f.tif", values, oiio.FLOAT)
+    write_image(tmp_path / "f.tif", values, oiio.FLOAT)
     photo = photo_io.read_photo_file(tmp_path / "f.tif")
     np.testing.assert_array_equal(photo.radiance, values.astype(np.float64))
     assert (photo.encoding, photo.encoding_reason) == ("linear", "float TIFF is scene-linear")
@@ -193,9 +173,9 @@ def test_8_and_16_bit_png_and_8_bit_tiff_are_decoded_from_srgb(tmp_path):
     rng = np.random.default_rng(6)
     c8 = rng.integers(0, 256, (5, 7, 3)).astype(np.uint8)
     c16 = rng.integers(0, 65536, (5, 7, 3)).astype(np.uint16)
-    _write(tmp_path / "a8.png", c8, oiio.UINT8)
-    _write(tmp_path / "a16.png", c16, oiio.UINT16)
-    _write(tmp_path / "a8.tif", c8, oiio.UINT8)
+    write_image(tmp_path / "a8.png", c8, oiio.UINT8)
+    write_image(tmp_path / "a16.png", c16, oiio.UINT16)
+    write_image(tmp_path / "a8.tif", c8, oiio.UINT8)
     p8 = photo_io.read_photo_file(tmp_path / "a8.png")
     p16 = photo_io.read_photo_file(tmp_path / "a16.png")
     t8 = photo_io.read_photo_file(tmp_path / "a8.tif")
@@ -210,7 +190,7 @@ def test_8_and_16_bit_png_and_8_bit_tiff_are_decoded_from_srgb(tmp_path):
 
 def test_jpeg_flat_colour_is_decoded_from_srgb(tmp_path):
     colour = np.array([200, 100, 30], dtype=np.uint8)
-    _write_attrs(tmp_path / "flat.jpg", np.tile(colour, (16, 16, 1)), oiio.UINT8,
+    write_image(tmp_path / "flat.jpg", np.tile(colour, (16, 16, 1)), oiio.UINT8,
                  {"Compression": "jpeg:100"})
     photo = photo_io.read_photo_file(tmp_path / "flat.jpg")
     assert (photo.file_format, photo.encoding, photo.encoding_reason) == \
@@ -225,7 +205,7 @@ def test_jpeg_flat_colour_is_decoded_from_srgb(tmp_path):
 def test_png_the_file_marks_as_linear_is_not_decoded(tmp_path):
     codes = np.random.default_rng(7).integers(0, 255, (4, 5, 3)).astype(np.uint8)
     # written by OpenImageIO with the attribute: kept in a tEXt chunk (and gAMA 1.0)
-    _write_attrs(tmp_path / "lin.png", codes, oiio.UINT8, {"oiio:ColorSpace": "Linear"})
+    write_image(tmp_path / "lin.png", codes, oiio.UINT8, {"oiio:ColorSpace": "Linear"})
     photo = photo_io.read_photo_file(tmp_path / "lin.png")
     np.testing.assert_array_equal(photo.radiance, codes / 255.0)
     assert (photo.encoding, photo.encoding_reason) == \
@@ -257,14 +237,14 @@ def test_declared_linear_names_and_gamma():
 
 def test_user_srgb_override_on_16_bit_tiff(tmp_path):
     codes = np.random.default_rng(8).integers(0, 65536, (3, 4, 3)).astype(np.uint16)
-    _write(tmp_path / "s.tif", codes, oiio.UINT16)
+    write_image(tmp_path / "s.tif", codes, oiio.UINT16)
     photo = photo_io.read_photo_file(tmp_path / "s.tif", color_space="SRGB")
     np.testing.assert_allclose(photo.radiance, _srgb_reference(codes / 65535.0),
                                rtol=1e-15, atol=0)
     assert (photo.encoding, photo.encoding_reason) == ("srgb", "user said sRGB")
     # "srgb" is case-insensitive; a 16-bit file declared linear is fine
     assert photo_io.read_photo_file(tmp_path / "s.tif", color_space="srgb").encoding == "srgb"
-    _write(tmp_path / "s16.png", codes, oiio.UINT16)
+    write_image(tmp_path / "s16.png", codes, oiio.UINT16)
     photo = photo_io.read_photo_file(tmp_path / "s16.png", color_space="LINEAR")
     np.testing.assert_array_equal(photo.radiance, codes / 65535.0)
     assert (photo.encoding, photo.encoding_reason) == ("linear", "user said linear")
@@ -274,8 +254,8 @@ def test_user_srgb_override_on_16_bit_tiff(tmp_path):
 
 def test_8_bit_photo_declared_linear_is_one_sentence_error(tmp_path):
     codes = np.full((3, 3, 3), 90, dtype=np.uint8)
-    _write(tmp_path / "a.png", codes, oiio.UINT8)
-    _write(tmp_path / "b.jpg", codes, oiio.UINT8)
+    write_image(tmp_path / "a.png", codes, oiio.UINT8)
+    write_image(tmp_path / "b.jpg", codes, oiio.UINT8)
     for name in ["a.png", "b.jpg"]:
         with pytest.raises(ValueError) as err:
             photo_io.read_photo_file(tmp_path / name, color_space="LINEAR")
@@ -289,7 +269,7 @@ def test_saturation_at_the_largest_code_8_and_16_bit(tmp_path):
     c8[1, 1, 0] = 255
     c8[2, 3] = 255
     c8[0, 4, 2] = 254  # one code below white: not saturated
-    _write(tmp_path / "s8.png", c8, oiio.UINT8)
+    write_image(tmp_path / "s8.png", c8, oiio.UINT8)
     photo = photo_io.read_photo_file(tmp_path / "s8.png")
     expected = np.zeros((4, 5), bool)
     expected[1, 1] = expected[2, 3] = True
@@ -297,7 +277,7 @@ def test_saturation_at_the_largest_code_8_and_16_bit(tmp_path):
     c16 = np.full((4, 5, 3), 1000, dtype=np.uint16)
     c16[3, 0, 1] = 65535
     c16[0, 0, 2] = 65534
-    _write(tmp_path / "s16.tif", c16, oiio.UINT16)
+    write_image(tmp_path / "s16.tif", c16, oiio.UINT16)
     photo = photo_io.read_photo_file(tmp_path / "s16.tif")
     expected = np.zeros((4, 5), bool)
     expected[3, 0] = True
@@ -305,7 +285,7 @@ def test_saturation_at_the_largest_code_8_and_16_bit(tmp_path):
     # a caller's lower level (linear units) is combined with the largest code
     c16[1, 2] = [30000, 40000, 100]  # 40000 / 65535 = 0.61 >= 0.6
     c16[2, 2] = [39000, 39000, 39000]  # 0.595 < 0.6
-    _write(tmp_path / "s16.tif", c16, oiio.UINT16)
+    write_image(tmp_path / "s16.tif", c16, oiio.UINT16)
     photo = photo_io.read_photo_file(tmp_path / "s16.tif", white_level=0.6)
     expected[1, 2] = True
     expected[0, 0] = True  # 65534 / 65535 is above 0.6 too
@@ -319,7 +299,7 @@ def test_float_saturation_only_with_a_white_level(tmp_path):
     values[2, 3] = [5.0, 6.0, 7.0]
     values[1, 1, 0] = 3.999
     values[1, 2, 0] = np.nan  # NaN is not saturated, only non-finite
-    _write(tmp_path / "w.exr", values, oiio.FLOAT)
+    write_image(tmp_path / "w.exr", values, oiio.FLOAT)
     assert not photo_io.read_photo_file(tmp_path / "w.exr").saturated.any()
     photo = photo_io.read_photo_file(tmp_path / "w.exr", white_level=4.0)
     expected = np.zeros((3, 4), bool)
@@ -350,7 +330,7 @@ _EXIF = {
 
 
 def test_jpeg_exif_exposure_date_and_gps_come_back_in_metadata(tmp_path):
-    _write_attrs(tmp_path / "m.jpg", np.full((8, 8, 3), 100, np.uint8), oiio.UINT8, _EXIF)
+    write_image(tmp_path / "m.jpg", np.full((8, 8, 3), 100, np.uint8), oiio.UINT8, _EXIF)
     meta = photo_io.read_photo_file(tmp_path / "m.jpg").metadata
     assert isinstance(meta["ExposureTime"], float)
     assert meta["ExposureTime"] == pytest.approx(1.0 / 125.0, rel=1e-6)
@@ -374,7 +354,7 @@ def test_jpeg_exif_exposure_date_and_gps_come_back_in_metadata(tmp_path):
 def test_tiff_exif_exposure_and_date_come_back_in_metadata(tmp_path):
     # OpenImageIO 3.0's TIFF writer stores the EXIF exposure and date tags but
     # not ISO or GPS, so only those it writes are checked here.
-    _write_attrs(tmp_path / "m.tif", np.full((8, 8, 3), 100, np.uint16), oiio.UINT16, _EXIF)
+    write_image(tmp_path / "m.tif", np.full((8, 8, 3), 100, np.uint16), oiio.UINT16, _EXIF)
     photo = photo_io.read_photo_file(tmp_path / "m.tif")
     meta = photo.metadata
     assert meta["ExposureTime"] == pytest.approx(1.0 / 125.0, rel=1e-6)
@@ -410,7 +390,7 @@ def test_camera_raw_with_libraw_is_read_linear(tmp_path, monkeypatch):
     monkeypatch.setattr(photo_io, "raw_supported", lambda: True)
     codes = np.random.default_rng(9).integers(0, 65536, (4, 6, 3)).astype(np.uint16)
     codes[2, 2, 1] = 65535
-    _write(tmp_path / "shot.tif", codes, oiio.UINT16)
+    write_image(tmp_path / "shot.tif", codes, oiio.UINT16)
     (tmp_path / "shot.dng").write_bytes((tmp_path / "shot.tif").read_bytes())
     photo = photo_io.read_photo_file(tmp_path / "shot.dng")
     np.testing.assert_array_equal(photo.radiance, codes / 65535.0)
@@ -427,7 +407,7 @@ def test_camera_raw_with_libraw_is_read_linear(tmp_path, monkeypatch):
 
 def _truncated(tmp_path, name, fmt, keep=0.5):
     values = np.random.default_rng(10).random((64, 80, 3)).astype(np.float32)
-    _write(tmp_path / name, values, fmt)
+    write_image(tmp_path / name, values, fmt)
     data = (tmp_path / name).read_bytes()
     (tmp_path / name).write_bytes(data[:int(len(data) * keep)])
     return tmp_path / name
@@ -468,7 +448,7 @@ def test_rgba_png_keeps_its_own_colour_codes_and_grey_becomes_rgb(tmp_path):
                                rtol=1e-15, atol=0)
     np.testing.assert_array_equal(photo.saturated, [[False, True]])
     grey = np.array([[[10], [255]]], dtype=np.uint16) * 257
-    _write(tmp_path / "grey.tif", grey, oiio.UINT16)
+    write_image(tmp_path / "grey.tif", grey, oiio.UINT16)
     photo = photo_io.read_photo_file(tmp_path / "grey.tif")
     np.testing.assert_array_equal(photo.radiance, np.repeat(grey / 65535.0, 3, axis=-1))
     np.testing.assert_array_equal(photo.saturated, [[False, True]])
@@ -480,7 +460,7 @@ def test_check_finite_counts_bad_pixels_inside_the_mask(tmp_path):
     values[0, 0, 1] = np.inf  # same pixel: counted once
     values[1, 3, 2] = -np.inf
     values[3, 4, 1] = np.nan
-    _write(tmp_path / "bad.exr", values, oiio.FLOAT)
+    write_image(tmp_path / "bad.exr", values, oiio.FLOAT)
     photo = photo_io.read_photo_file(tmp_path / "bad.exr")
     assert photo.nonfinite == 3
     with pytest.raises(ValueError) as err:
