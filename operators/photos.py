@@ -14,6 +14,12 @@ from bpy.props import CollectionProperty, IntProperty, StringProperty
 from bpy.types import OperatorFileListElement
 
 
+# what a new entry takes from the last one: often all photos share one light
+SHARED = ("light_source", "sun", "direction", "probe_path", "probe_center", "probe_radius",
+          "when", "utc_offset", "latitude", "longitude", "north_offset", "time_from_exif",
+          "place_from_exif", "irradiance", "color_space")
+
+
 def _stem(name: str) -> str:
     return os.path.splitext(os.path.basename(name))[0]
 
@@ -42,8 +48,9 @@ def add_photos(scene, paths) -> tuple[list, list[str]]:
     """Append one ``scene.brdf.photos`` entry per matched path.
 
     Returns (added entries, one message per photo not added). A path already in
-    the list is not added twice. New entries take the light of the last entry
-    (often all photos share one light), else the scene's first Sun object.
+    the list is not added twice. New entries take the light (with its date,
+    place or probe), irradiance and colour space of the last entry (often all
+    photos share one light), else the scene's first Sun object.
     """
     settings = scene.brdf
     existing = {bpy.path.abspath(p.filepath) for p in settings.photos}
@@ -64,7 +71,7 @@ def add_photos(scene, paths) -> tuple[list, list[str]]:
         entry.filepath = path
         entry.camera = camera
         if template is not None:
-            for key in ("light_source", "sun", "direction", "irradiance"):
+            for key in SHARED:
                 setattr(entry, key, getattr(template, key))
         elif suns:
             entry.sun = suns[0]

@@ -302,3 +302,16 @@ def test_cameras_from_another_importer_use_the_scene_render_size(tiny):
     with pytest.raises(ValueError, match=r"48x48 pixels but its camera view0\.jpg is 64x48 "
                                          r"\(scene render size\)"):
         runner.gather_capture(tiny["scene"])
+
+
+def test_a_new_photo_takes_the_last_ones_light_with_its_date_and_place(tiny):
+    first = _entry(tiny, tiny["photo"])
+    first.light_source, first.when, first.latitude = "SUN_POSITION", "2026-03-01 10:00:00", 35.0
+    first.place_from_exif, first.color_space = True, "SRGB"
+    other = tiny["dir"] / "view0_b.exr"
+    other.write_bytes(tiny["photo"].read_bytes())
+    tiny["camera"]["brdf_image_name"] = "view0_b.jpg"
+    (added,), unmatched = photos.add_photos(tiny["scene"], [str(other)])
+    assert unmatched == []
+    assert (added.light_source, added.when, added.latitude, added.place_from_exif,
+            added.color_space) == ("SUN_POSITION", "2026-03-01 10:00:00", 35.0, True, "SRGB")
