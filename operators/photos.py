@@ -13,7 +13,6 @@ import bpy
 from bpy.props import CollectionProperty, IntProperty, StringProperty
 from bpy.types import OperatorFileListElement
 
-
 # what a new entry takes from the last one: often all photos share one light
 SHARED = ("light_source", "sun", "direction", "probe_path", "probe_center", "probe_radius",
           "when", "utc_offset", "latitude", "longitude", "north_offset", "time_from_exif",
