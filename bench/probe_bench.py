@@ -13,7 +13,10 @@ circle's share of the error from the highlight's. Configurations: 320 x 240 at
 
 Writes bench/results/light_probe.json: every case, and per configuration the
 median and largest error and how often the error is below the reported
-uncertainty (and below twice it). About 3 minutes on the 2-core machine.
+uncertainty (and below twice it); and bench/results/light_probe.png: the error
+against the light's angle from the view, per sphere, HDR and clipped, with the
+reported uncertainty, for the circle `locate_sphere` found. About 2 minutes on
+the 2-core machine.
 
 Run: ``.venv/bin/python bench/probe_bench.py`` (``--quick``: 320 x 240 only).
 """
@@ -122,14 +125,72 @@ def main(quick: bool = False) -> dict:
     out = HERE / "results" / "light_probe.json"
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(result, indent=1))
+    plot(result, out.with_suffix(".png"))
     for name, s in summary.items():
         print(f"{name}: " + ", ".join(
             f"{k} median {v['median_error_deg']:.2f} max {v['max_error_deg']:.2f} "
             f"(< unc {v['fraction_error_below_uncertainty']:.0%}, "
             f"< 2 unc {v['fraction_error_below_2x_uncertainty']:.0%})"
             for k, v in s.items() if isinstance(v, dict)))
-    print(f"wrote {out} in {result['total_s']:.0f} s")
+    print(f"wrote {out} and {out.with_suffix('.png').name} in {result['total_s']:.0f} s")
     return result
+
+
+def plot(result: dict, path: pathlib.Path) -> None:
+    """Error (degrees) against the light's angle from the view: a panel per sphere (rows)
+    and tone (columns: HDR, clipped), a colour per configuration; dots are photos (one
+    per roll), the dashed line is the median reported uncertainty (1 sigma) per angle.
+    The circle is the one `locate_sphere` found ("auto"); the JSON also has the true one."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cases = result["cases"]
+    kinds = list(dict.fromkeys(c["kind"] for c in cases))
+    configs = list(dict.fromkeys((tuple(c["size"]), c["samples"]) for c in cases))
+    colours = ("tab:blue", "tab:orange", "tab:green", "tab:red")
+    fig, axes = plt.subplots(len(kinds), 2, figsize=(12, 4.2 * len(kinds)), sharex=True,
+                             sharey=True, squeeze=False)
+    for row, kind in enumerate(kinds):
+        for col, tone in enumerate(("hdr", "clipped")):
+            ax = axes[row, col]
+            key = f"{tone}_auto"
+            for i, (size, samples) in enumerate(configs):
+                sel = [c for c in cases if c["kind"] == kind
+                       and (tuple(c["size"]), c["samples"]) == (size, samples)]
+                if not sel:
+                    continue
+                shift = 1.6 * (i - (len(configs) - 1) / 2)  # degrees, so the dots do not overlap
+                err = np.array([c[key]["error_deg"] for c in sel])
+                angles = sorted({c["angle_deg"] for c in sel})
+                unc = [np.median([c[key]["uncertainty_deg"] for c in sel
+                                  if c["angle_deg"] == a]) for a in angles]
+                radius = np.median([c["radius_px"] for c in sel])
+                colour = colours[i % len(colours)]
+                ax.plot(np.array([c["angle_deg"] for c in sel]) + shift, err, "o", ms=5,
+                        color=colour, alpha=0.8,
+                        label=f"{size[0]}x{size[1]} {samples} spp (r {radius:.0f} px): "
+                              f"median {np.median(err):.2f}, max {err.max():.2f} deg")
+                ax.plot(np.array(angles) + shift, unc, "--", marker="_", ms=14, mew=2,
+                        color=colour, lw=1.2)
+            ax.plot([], [], "k--", lw=1.2, label="dashes: median reported uncertainty (1 sigma)")
+            ax.set_title(f"{kind} sphere, {'HDR' if tone == 'hdr' else 'clipped at 1.0'}",
+                         fontsize=10)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8, loc="upper left")
+            if col == 0:
+                ax.set_ylabel("angular error of the light (degrees)")
+            if row == len(kinds) - 1:
+                ax.set_xlabel("light's angle from the view (degrees), 4 rolls each")
+    axes[0, 0].set_ylim(bottom=0.0)
+    axes[0, 0].set_ylim(top=axes[0, 0].get_ylim()[1] * 1.35)  # room for the legend
+    axes[0, 0].set_xticks(result["angles_deg"])
+    fig.suptitle("Light from a Cycles photo of a probe sphere, circle found by locate_sphere "
+                 "(bench/probe_bench.py)", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
 
 
 if __name__ == "__main__":

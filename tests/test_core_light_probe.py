@@ -1,4 +1,5 @@
-"""Light direction from a mirror sphere: synthetic renders with a known distant light."""
+"""Light direction from a mirror sphere (core.light_probe): synthetic renders with a known
+distant light. The renderers here serve tests/test_core_sphere_outline.py too."""
 
 import numpy as np
 import pytest
@@ -199,29 +200,6 @@ def test_perspective_light_at_camera(where):
     assert _angle_deg(res.direction, l_true) < TOL_DEG
 
 
-@pytest.mark.parametrize("light", PERSP_LIGHTS)
-def test_perspective_with_fitted_circle(light):
-    # End to end: the circle comes from detect_sphere (cone fit) on the rendered coverage.
-    centre = np.array(SPHERE_CENTRES["off_axis"])
-    l_true = _frame_with_z(-_unit(centre)) @ _unit(PERSP_LIGHTS[light])
-    img, mask = render_perspective(l_true, centre, CAM)
-    c, r = lp.detect_sphere(mask, camera=CAM)
-    c_exact, r_exact = outline_circle(centre, CAM)
-    assert np.allclose(c, c_exact, atol=0.2) and r == pytest.approx(r_exact, abs=0.2)
-    res = lp.light_from_sphere(img, c, r, camera=CAM)
-    assert _angle_deg(res.direction, l_true) < TOL_DEG
-
-
-def test_plain_circle_fit_is_worse_off_axis_near_grazing():
-    # Why detect_sphere takes the camera: a Kasa circle on the elliptical outline is off.
-    centre = np.array(SPHERE_CENTRES["off_axis"])
-    l_true = _frame_with_z(-_unit(centre)) @ _unit(PERSP_LIGHTS["near_grazing_140deg"])
-    img, mask = render_perspective(l_true, centre, CAM)
-    c, r = lp.detect_sphere(mask)
-    res = lp.light_from_sphere(img, c, r, camera=CAM)
-    assert _angle_deg(res.direction, l_true) > 1.0
-
-
 def test_perspective_differs_from_orthographic_off_axis():
     # Treating an off-axis perspective view as orthographic ignores that v is not +z.
     centre = np.array(SPHERE_CENTRES["off_axis"])
@@ -241,20 +219,6 @@ def test_world_space_rotation():
     res = lp.light_from_sphere(render_orthographic(l_true), CENTER, RADIUS, camera_to_world=rot)
     assert np.allclose(res.direction_world, rot @ res.direction)
     assert _angle_deg(res.direction_world, rot @ l_true) < TOL_DEG
-
-
-def test_detect_sphere_mask_and_image():
-    shape, c_true, r_true = (260, 300), (150.3, 120.7), 80.4
-    cover = np.zeros(shape)
-    for x, y in _subsamples(shape):
-        cover += (x - c_true[0]) ** 2 + (y - c_true[1]) ** 2 < r_true**2
-    mask = cover / SS**2 > 0.5
-    c, r = lp.detect_sphere(mask)
-    assert np.allclose(c, c_true, atol=0.1)
-    assert r == pytest.approx(r_true, abs=0.1)
-    image = np.where(mask, 0.3, 0.01)[..., None] * np.ones(3)
-    c2, r2 = lp.detect_sphere(image)
-    assert np.allclose(c2, c) and r2 == pytest.approx(r)
 
 
 def test_error_no_highlight():
@@ -286,6 +250,7 @@ def test_error_circle_off_image():
         ({"camera": lp.PerspectiveCamera(0.0, (1.0, 1.0))}, "focal_px"),
         ({"camera_to_world": np.diag([2.0, 2.0, 2.0])}, "rotation"),
         ({"image": np.zeros((10, 10, 2))}, "image"),
+        ({"circle_sigma_px": -1}, "circle_sigma_px"),
     ],
 )
 def test_error_bad_arguments(kwargs, match):
@@ -299,15 +264,11 @@ def test_error_bad_arguments(kwargs, match):
         lp.light_from_sphere(**args)
 
 
-def test_error_nan_in_disc_and_empty_mask():
+def test_error_nan_in_disc():
     img = render_orthographic([0, 0, 1], shape=(64, 64), center=(32, 32), radius=20)
     img[32, 30] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         lp.light_from_sphere(img, (32.0, 32.0), 20.0)
-    with pytest.raises(ValueError, match="boundary"):
-        lp.detect_sphere(np.zeros((20, 20), dtype=bool))
-    with pytest.raises(ValueError, match="camera"):
-        lp.detect_sphere(np.eye(20, dtype=bool), camera="fisheye")
 
 
 def _frame_with_z(z):
@@ -318,7 +279,7 @@ def _frame_with_z(z):
     return np.column_stack([x, np.cross(z, x), z])
 
 
-# --- locating the sphere in the photo itself (locate_sphere, refine_sphere) -------
+# --- probe photos: an off-axis ball (the outline tests use them too) ---------------
 
 CAM_SMALL = lp.PerspectiveCamera(focal_px=400.0, principal_px=(159.5, 119.5))
 BALL = np.array([0.9, -0.5, -6.5])  # off-axis: the outline is an ellipse
@@ -350,106 +311,6 @@ def render_probe_photo(kind, l, centre=BALL, cam=CAM_SMALL, shape=(240, 320), ba
         img += np.where(hit, sphere, background)
     img /= SS**2
     return img + np.random.default_rng(seed).normal(0.0, noise, shape)
-
-
-def _circle_error(found, truth):
-    (cx, cy), r = found
-    (tx, ty), tr = truth
-    return np.hypot(cx - tx, cy - ty), abs(r - tr)
-
-
-@pytest.mark.parametrize(
-    ("kind", "background"),
-    [("black", 0.4), ("chrome", 0.05)],
-    ids=["black_on_grey", "chrome_on_dark"],
-)
-def test_locate_sphere_either_polarity(kind, background):
-    img = render_probe_photo(kind, BALL_LIGHT, background=background)
-    found = lp.locate_sphere(img, camera=CAM_SMALL)
-    dc, dr = _circle_error(found, outline_circle(BALL, CAM_SMALL))
-    assert dc < 0.1 and dr < 0.1
-    res = lp.light_from_sphere(img, *found, camera=CAM_SMALL)
-    assert _angle_deg(res.direction, BALL_LIGHT) < TOL_DEG
-
-
-def test_locate_sphere_ignores_hot_pixels_and_a_clipped_highlight():
-    img = np.minimum(render_probe_photo("black", BALL_LIGHT, gain=5000.0), 1.0)
-    rng = np.random.default_rng(4)
-    rows, cols = rng.integers(0, 240, 12), rng.integers(0, 320, 12)
-    img[rows, cols] = 1.0  # clipped hot pixels, on the wall and on the ball
-    found = lp.locate_sphere(img, camera=CAM_SMALL)
-    dc, dr = _circle_error(found, outline_circle(BALL, CAM_SMALL))
-    assert dc < 0.1 and dr < 0.1
-    res = lp.light_from_sphere(img, *found, camera=CAM_SMALL)
-    assert _angle_deg(res.direction, BALL_LIGHT) < TOL_DEG
-
-
-def test_locate_sphere_orthographic_disc():
-    shape, c_true, r_true = (200, 260), (140.4, 96.8), 61.3
-    cover = np.zeros(shape)
-    for x, y in _subsamples(shape):
-        cover += (x - c_true[0]) ** 2 + (y - c_true[1]) ** 2 < r_true**2
-    img = 0.5 - 0.45 * cover / SS**2  # a dark disc on grey, anti-aliased
-    (cx, cy), r = lp.locate_sphere(img)
-    assert np.hypot(cx - c_true[0], cy - c_true[1]) < 0.05 and abs(r - r_true) < 0.05
-
-
-def test_locate_sphere_with_a_clean_plate():
-    # The wall's left half is as dark as the ball: half its outline is invisible in the
-    # photo alone; the difference from the clean plate shows all of it.
-    wall = np.where(np.arange(320)[None, :] < 180, 0.03, 0.4) * np.ones((240, 1))
-    img = render_probe_photo("black", BALL_LIGHT, background=wall)
-    found = lp.locate_sphere(img, camera=CAM_SMALL, background=wall)
-    dc, dr = _circle_error(found, outline_circle(BALL, CAM_SMALL))
-    assert dc < 0.1 and dr < 0.1
-
-
-@pytest.mark.parametrize(
-    "image",
-    [
-        np.random.default_rng(1).normal(0.3, 0.01, (120, 160)),
-        np.pad(np.full((60, 60), 0.8), 40, constant_values=0.1),  # a square is no sphere
-    ],
-    ids=["noise", "square"],
-)
-def test_locate_sphere_no_sphere_is_one_clear_error(image):
-    with pytest.raises(ValueError, match="no sphere-like circle"):
-        lp.locate_sphere(image)
-
-
-def test_refine_sphere_snaps_an_off_circle():
-    img = render_probe_photo("black", BALL_LIGHT)
-    truth = outline_circle(BALL, CAM_SMALL)
-    (tx, ty), tr = truth
-    drawn = ((tx - 2.0, ty + 1.5), tr - 2.0)
-    off = lp.light_from_sphere(img, *drawn, camera=CAM_SMALL)
-    assert _angle_deg(off.direction, BALL_LIGHT) > 2.0  # what an off circle costs
-    found = lp.refine_sphere(img, *drawn, camera=CAM_SMALL, search_px=4.0)
-    dc, dr = _circle_error(found, truth)
-    assert dc < 0.1 and dr < 0.1
-    res = lp.light_from_sphere(img, *found, camera=CAM_SMALL)
-    assert _angle_deg(res.direction, BALL_LIGHT) < TOL_DEG
-    with pytest.raises(ValueError, match="no sphere outline found"):
-        lp.refine_sphere(img, (40.0, 40.0), 20.0, camera=CAM_SMALL)  # on the wall
-
-
-@pytest.mark.parametrize(
-    ("call", "match"),
-    [
-        (lambda img: lp.locate_sphere(img, radius_range_px=(50.0, 20.0)), "radius_range_px"),
-        (lambda img: lp.locate_sphere(img, background=np.zeros((10, 10))), "background"),
-        (lambda img: lp.locate_sphere(img[:10, :10]), "too small"),
-        (lambda img: lp.locate_sphere(np.where(img > 0.3, np.nan, img)), "NaN"),
-        (lambda img: lp.locate_sphere(img, camera="fisheye"), "camera"),
-        (lambda img: lp.refine_sphere(img, (160.0, 120.0), 60.0, search_px=0.1), "search_px"),
-        (lambda img: lp.light_from_sphere(img, (160.0, 120.0), 60.0, circle_sigma_px=-1),
-         "circle_sigma_px"),
-    ],
-    ids=["radius_range", "background_shape", "too_small", "nan", "camera", "search", "sigma"],
-)
-def test_locate_and_refine_argument_errors(call, match):
-    with pytest.raises(ValueError, match=match):
-        call(render_probe_photo("black", BALL_LIGHT, noise=0.0))
 
 
 # --- the highlight: sub-pixel, hot pixels; the uncertainty ------------------------
