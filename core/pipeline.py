@@ -174,12 +174,16 @@ def observe_photos(inputs: Sequence[PhotoInput], settings: PipelineSettings,
 
 
 def region_views(inputs: Sequence[PhotoInput], region: int) -> list[selection.View]:
-    """The photos that see ``region``, as KL views masked to that region's pixels."""
+    """The photos that see ``region``, as KL views masked to that region's pixels
+    (less the saturated ones: a clipped photo pixel says nothing of the candidate's
+    value there)."""
     views = []
     for p in inputs:
         mask = np.asarray(p.region) == region
         if p.mask is not None:
             mask &= np.asarray(p.mask, dtype=bool)
+        if p.saturated is not None:
+            mask &= ~np.asarray(p.saturated, dtype=bool)
         if not mask.any():
             continue
         views.append(selection.View(photo=p.photo, normal=p.normal, visibility=p.visibility,

@@ -100,6 +100,9 @@ def test_saturated_mask_turns_off_the_brightest_peak_in_the_pipeline(scene):
     assert pipeline.saturated_pixels([p], 0, None) == 3 * 96
     assert pipeline.saturated_pixels([p], 0, 1e9) == 3 * 96
     assert pipeline.saturated_pixels([p], 1, None) == 0
+    # nor do they enter the KL histograms
+    (view,) = pipeline.region_views([p], 0)
+    assert view.mask.sum() == truth.mask.size - 3 * 96 and not view.mask[:3].any()
 
 
 def test_extreme_all_saturated_photo(scene):
