@@ -205,6 +205,12 @@ class BRDF_PT_results(_BRDFPanel, Panel):
         if not len(s.results):
             layout.label(text="No results yet")
             return
+        notes = json.loads(s.capture_notes or "[]")
+        if notes:
+            box = layout.box()
+            box.label(text="Photos", icon="IMAGE_DATA")
+            for line in notes:
+                box.label(text=line)
         for i, r in enumerate(s.results):
             box = layout.box()
             box.label(text=r.label, icon="MATERIAL" if r.status == "ok" else "ERROR")

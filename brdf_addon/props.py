@@ -236,6 +236,10 @@ class BRDFSettings(PropertyGroup):
                             subtype="FACTOR", options={"SKIP_SAVE"})
     status: StringProperty(name="Status", default="")
     results: CollectionProperty(type=BRDFRegionResult)
+    capture_notes: StringProperty(name="Capture Notes", default="[]",
+                                  description="What the last run did to the photos (JSON "
+                                  "list of lines): scaling, undistortion, exposure, "
+                                  "saturation, the irradiance rule")
 
 
 CLASSES = (BRDFPhoto, BRDFRegionResult, BRDFSettings)

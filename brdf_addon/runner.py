@@ -97,6 +97,30 @@ def capture_inputs(gathered) -> tuple[list[pipeline.PhotoInput], dict]:
     return inputs, {"photos": [g.report for g in gathered], "irradiance": irradiance_notes}
 
 
+def capture_notes(capture: dict) -> list[str]:
+    """One line per thing done to the photos that the user should know: a scaled
+    or undistorted photo, an exposure scale, saturated pixels, the irradiance rule."""
+    lines = []
+    photos = capture.get("photos", [])
+    for p in photos:
+        name = p.get("name", "")
+        if p.get("scaled"):
+            lines.append(f"{name}: {p['scaled']}")
+        if p.get("undistorted"):
+            lines.append(f"{name}: undistorted ({p['undistorted']})")
+        if p.get("exposure") and p.get("exposure_scale", 1.0) != 1.0:
+            lines.append(p["exposure"])
+        if p.get("saturated_pixels"):
+            lines.append(f"{name}: {p['saturated_pixels']} saturated pixels excluded")
+        uncertainty = p.get("light", {}).get("uncertainty_deg")
+        if uncertainty is not None:
+            lines.append(f"{name}: sphere-probe light, uncertainty {uncertainty:.2f} deg")
+    if len(photos) > 1 and all("assumed equally exposed" in p.get("exposure", "")
+                               for p in photos):
+        lines.append("no exposure EXIF: photos assumed equally exposed")
+    return lines + list(capture.get("irradiance", []))
+
+
 def output_dir(scene) -> pathlib.Path:
     path = pathlib.Path(bpy.path.abspath(scene.brdf.output_dir or "//brdf_out"))
     path.mkdir(parents=True, exist_ok=True)
@@ -129,6 +153,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
     out = output_dir(scene)
     labels = region_labels(settings.target, settings.region_mode)
     settings.results.clear()
+    settings.capture_notes = json.dumps(capture_notes(capture or {}))
     regions = []
     for r in result.regions:
         label = labels.get(r.region, f"region {r.region}")

@@ -107,7 +107,7 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
         context.scene.brdf.progress = 0.0
 
     def _report_done(self, report):
-        for line in capture_notes(report.get("capture", {})):
+        for line in _runner().capture_notes(report.get("capture", {})):
             self.report({"INFO"}, line)
             if bpy.app.background:
                 print(f"note: {line}", flush=True)
@@ -117,30 +117,6 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
             self.report({"WARNING"}, f"Skipped {r['label']}: {r['reason']}")
         self.report({"INFO"}, f"Reconstructed {len(ok)} region(s); "
                     f"{len(skipped)} skipped")
-
-
-def capture_notes(capture: dict) -> list[str]:
-    """One line per thing done to the photos that the user should know: a scaled
-    or undistorted photo, an exposure scale, saturated pixels, the irradiance rule."""
-    lines = []
-    photos = capture.get("photos", [])
-    for p in photos:
-        name = p.get("name", "")
-        if p.get("scaled"):
-            lines.append(f"{name}: {p['scaled']}")
-        if p.get("undistorted"):
-            lines.append(f"{name}: undistorted ({p['undistorted']})")
-        if p.get("exposure") and p.get("exposure_scale", 1.0) != 1.0:
-            lines.append(p["exposure"])
-        if p.get("saturated_pixels"):
-            lines.append(f"{name}: {p['saturated_pixels']} saturated pixels excluded")
-        uncertainty = p.get("light", {}).get("uncertainty_deg")
-        if uncertainty is not None:
-            lines.append(f"{name}: sphere-probe light, uncertainty {uncertainty:.2f} deg")
-    if len(photos) > 1 and all("assumed equally exposed" in p.get("exposure", "")
-                               for p in photos):
-        lines.append("no exposure EXIF: photos assumed equally exposed")
-    return lines + list(capture.get("irradiance", []))
 
 
 def _sentence(error) -> str:

@@ -186,6 +186,9 @@ def test_saturated_pixels_of_an_8bit_photo_are_excluded_and_counted(tiny):
     assert bpy.ops.brdf.reconstruct() == {"FINISHED"}
     report = json.loads((tiny["dir"] / "out" / "report.json").read_text())
     assert report["photos"][0]["removed"]["saturated"] > 0
+    # and the Results panel says so
+    notes = json.loads(tiny["scene"].brdf.capture_notes)
+    assert f"hot.png: {int(clipped.sum())} saturated pixels excluded" in notes
 
 
 def test_silhouette_margin_shrinks_the_mask(tiny):

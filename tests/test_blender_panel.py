@@ -193,8 +193,10 @@ def test_results(scene):
     ok.table_path = "/tmp/brdf_0.binary"
     bad = scene.brdf.results.add()
     bad.label, bad.status, bad.reason = "slot 1", "skipped", "region 1: no photo sees it"
+    scene.brdf.capture_notes = json.dumps(["a.png: 12 saturated pixels excluded"])
     calls = _draw_all(bpy.context)
     labels = _labels(calls)
+    assert "a.png: 12 saturated pixels excluded" in labels
     assert "Trial 3, KL 0.1200" in labels
     assert "Samples: 900 observed, -100 curvature, 800 reliable" in labels
     assert "region 1: no photo sees it" in labels
