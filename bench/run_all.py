@@ -2,8 +2,8 @@
 
 About 3 to 4 hours on the 2-core machine: reliable_bench (~45 min), tradeoff
 (~1 h), heldout with the Mitsuba peer (~20 min), scaling, extremes, SfM, core
-the Cycles KL samples and the sphere probe (~2 min). ``--quick`` runs the reduced
-version of each.
+the Cycles KL samples, the sphere probe (~2 min) and camera-style inputs
+(~13 min). ``--quick`` runs the reduced version of each that has one.
 """
 
 from __future__ import annotations
@@ -16,14 +16,15 @@ HERE = Path(__file__).resolve().parent
 # each in its own process: they set their own thread pinning and Blender scenes
 SCRIPTS = ("core_bench.py", "reliable_bench.py", "cycles_kl_bench.py", "tradeoff.py",
            "extremes_bench.py", "scaling_bench.py", "sfm.py", "heldout_bench.py",
-           "probe_bench.py")
+           "probe_bench.py", "camera_inputs_bench.py")
 
 
 def main() -> int:
     quick = "--quick" in sys.argv[1:]
     failed = []
     for script in SCRIPTS:
-        args = ["--quick"] if quick and script not in ("cycles_kl_bench.py", "sfm.py") else []
+        args = ["--quick"] if quick and script not in ("cycles_kl_bench.py", "sfm.py",
+                                                         "camera_inputs_bench.py") else []
         print(f"== {script} {' '.join(args)}", flush=True)
         if subprocess.run([sys.executable, str(HERE / script), *args]).returncode != 0:
             failed.append(script)
