@@ -204,30 +204,31 @@ def test_horizon_error_follows_its_spread():
     assert np.median(ratios) == pytest.approx(np.sqrt(2 * np.log(2)), rel=0.25)
 
 
-def test_forward_facing_line_uses_the_up_vectors():
-    # Level cameras side by side, all facing the same way (a facade): collinear centres,
-    # parallel right vectors; only the up vectors tell.
+def _facing_the_facade(spots):
+    """Level cameras at (x, z) spots on the plane y = -5 of the (rotated) world, each
+    looking straight ahead along +y: (N, 3, 3) rotations and (N, 3) centres."""
     R, C = [], []
-    for x in np.linspace(-3, 3, 7):
-        R_cw, t = colmap.look_at(Q @ [x, -5.0, 1.0] + SHIFT, Q @ [x, 0.0, 1.0] + SHIFT, TRUE_UP)
+    for x, z in spots:
+        R_cw, t = colmap.look_at(Q @ [x, -5.0, z] + SHIFT, Q @ [x, 0.0, z] + SHIFT, TRUE_UP)
         M = colmap.camera_to_world(R_cw, t)
         R.append(M[:3, :3])
         C.append(M[:3, 3])
-    est = scene_frame.estimate_up(np.array(R), np.array(C))
+    return np.array(R), np.array(C)
+
+
+def test_forward_facing_line_uses_the_up_vectors():
+    # Level cameras side by side, all facing the same way (a facade): collinear centres,
+    # parallel right vectors; only the up vectors tell.
+    R, C = _facing_the_facade([(x, 1.0) for x in np.linspace(-3, 3, 7)])
+    est = scene_frame.estimate_up(R, C)
     assert est.method == "camera up vectors"
     assert _angle_deg(est.up, TRUE_UP) < 1e-6
 
 
 def test_facade_grid_plane_is_rejected():
     # Centres on a vertical plane (its normal is horizontal): not the scene's up.
-    R, C = [], []
-    for x in np.linspace(-3, 3, 4):
-        for z in (0.5, 1.5, 2.5):
-            R_cw, t = colmap.look_at(Q @ [x, -5.0, z] + SHIFT, Q @ [x, 0.0, z] + SHIFT, TRUE_UP)
-            M = colmap.camera_to_world(R_cw, t)
-            R.append(M[:3, :3])
-            C.append(M[:3, 3])
-    est = scene_frame.estimate_up(np.array(R), np.array(C))
+    R, C = _facing_the_facade([(x, z) for x in np.linspace(-3, 3, 4) for z in (0.5, 1.5, 2.5)])
+    est = scene_frame.estimate_up(R, C)
     assert est.method == "camera up vectors"
     assert _angle_deg(est.up, TRUE_UP) < 1e-6
 
