@@ -229,16 +229,22 @@ def read_multilayer_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     return channels
 
 
+def camera_resolution(camera, scene) -> tuple[tuple[int, int], str]:
+    """The (width, height) in pixels a camera's images have, and where that came
+    from: "camera" for the object's (or its data's) ``brdf_width`` /
+    ``brdf_height`` (the COLMAP import sets them), else "scene render size" (the
+    scene's output size with its percentage, as other importers set it)."""
+    for holder in (camera, camera.data):
+        if "brdf_width" in holder and "brdf_height" in holder:
+            return (holder["brdf_width"], holder["brdf_height"]), "camera"
+    scale = scene.render.resolution_percentage / 100.0
+    return ((int(scene.render.resolution_x * scale), int(scene.render.resolution_y * scale)),
+            "scene render size")
+
+
 def _resolution(camera, scene, resolution) -> tuple[int, int]:
     if resolution is None:
-        for holder in (camera, camera.data):
-            if "brdf_width" in holder and "brdf_height" in holder:
-                resolution = (holder["brdf_width"], holder["brdf_height"])
-                break
-        else:
-            scale = scene.render.resolution_percentage / 100.0
-            resolution = (int(scene.render.resolution_x * scale),
-                          int(scene.render.resolution_y * scale))
+        resolution = camera_resolution(camera, scene)[0]
     try:
         width, height = (int(r) for r in resolution)
     except (TypeError, ValueError):

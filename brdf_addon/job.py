@@ -135,12 +135,8 @@ def load(path) -> Job:
         if "exposure" in entry and not (isinstance(entry["exposure"], int | float)
                                         and entry["exposure"] > 0):
             raise JobError(f"photo {i + 1}: exposure must be a positive number")
-        for kind, known in (("sun", KNOWN_SUN), ("probe", KNOWN_PROBE)):
-            table = photo.get("light", {}).get(kind) if isinstance(photo.get("light"),
-                                                                   dict) else None
-            if table is not None and set(table) - known:
-                raise JobError(f"photo {i + 1} [photo.{kind}] has unknown keys: "
-                               + ", ".join(sorted(set(table) - known)))
+        if isinstance(photo.get("light"), dict):
+            _check_light_table(i, photo["light"])
         light = photo.get("light")
         if isinstance(light, dict) and "probe" in light:
             light = dict(light)
@@ -150,6 +146,33 @@ def load(path) -> Job:
             photo["light"] = light
         job.photos.append(photo)
     return job
+
+
+def _check_light_table(i: int, light: dict) -> None:
+    """JobError (one sentence) for a [photo.sun] or [photo.probe] table of photo i
+    with unknown keys or half of a pair."""
+    for kind, known in (("sun", KNOWN_SUN), ("probe", KNOWN_PROBE)):
+        table = light.get(kind)
+        if table is None:
+            continue
+        if set(table) - known:
+            raise JobError(f"photo {i + 1} [photo.{kind}] has unknown keys: "
+                           + ", ".join(sorted(set(table) - known)))
+    sun = light.get("sun", {})
+    if ("latitude" in sun) != ("longitude" in sun):
+        raise JobError(f"photo {i + 1}: [photo.sun] needs both latitude and longitude "
+                       "(or neither, to take them from GPS EXIF)")
+    probe = light.get("probe", {})
+    if ("center" in probe) != ("radius" in probe):
+        raise JobError(f"photo {i + 1}: [photo.probe] needs both center and radius "
+                       "(or neither, to find the sphere automatically)")
+    if "center" in probe:
+        center, radius = probe["center"], probe["radius"]
+        if not (isinstance(center, list) and len(center) == 2
+                and all(isinstance(x, int | float) for x in center)
+                and isinstance(radius, int | float) and radius > 0):
+            raise JobError(f"photo {i + 1}: probe center must be [x, y] and radius a "
+                           "positive number of pixels")
 
 
 def apply(job: Job, scene) -> None:
@@ -257,27 +280,17 @@ def _set_light(scene, photo, light, i: int) -> None:
             photo.when = str(sun["date"])
         if "utc_offset" in sun:
             photo.utc_offset = float(sun["utc_offset"])
-        photo.place_from_exif = "latitude" not in sun and "longitude" not in sun
+        photo.place_from_exif = "latitude" not in sun  # load() checked they come in pairs
         if not photo.place_from_exif:
-            if "latitude" not in sun or "longitude" not in sun:
-                raise JobError(f"photo {i + 1}: [photo.sun] needs both latitude and "
-                               "longitude (or neither, to take them from GPS EXIF)")
             photo.latitude, photo.longitude = float(sun["latitude"]), float(sun["longitude"])
         photo.north_offset = float(sun.get("north_offset", 0.0))
     elif isinstance(light, dict) and "probe" in light:
         probe = light["probe"]
         photo.light_source = "PROBE"
         photo.probe_path = str(probe["image"])
-        if ("center" in probe) != ("radius" in probe):
-            raise JobError(f"photo {i + 1}: [photo.probe] needs both center and radius "
-                           "(or neither, to find the sphere automatically)")
-        if "center" in probe:
-            center, radius = probe["center"], probe["radius"]
-            if not (isinstance(center, list) and len(center) == 2
-                    and isinstance(radius, int | float) and radius > 0):
-                raise JobError(f"photo {i + 1}: probe center must be [x, y] and radius a "
-                               "positive number of pixels")
-            photo.probe_center, photo.probe_radius = tuple(map(float, center)), float(radius)
+        if "center" in probe:  # load() checked center and radius
+            photo.probe_center = tuple(map(float, probe["center"]))
+            photo.probe_radius = float(probe["radius"])
     else:
         raise JobError(f"photo {i + 1}: light must be [x, y, z], a Sun name, "
                        "a sun table or a probe table")

@@ -61,17 +61,6 @@ def exposure_plan(scene) -> tuple[np.ndarray, list[str]]:
     return exif.exposure_scales(exposures, user, names=[p.name for p in photos])
 
 
-def camera_size(scene, camera) -> tuple[tuple[int, int], str]:
-    """The (width, height) in pixels a camera's photos should have, and where that
-    came from: the COLMAP import's ``brdf_width`` / ``brdf_height``, else the
-    scene's render size (as the Photogrammetry Importer and others set it)."""
-    if "brdf_width" in camera and "brdf_height" in camera:
-        return (int(camera["brdf_width"]), int(camera["brdf_height"])), "camera"
-    r = scene.render
-    scale = r.resolution_percentage / 100.0
-    return (int(r.resolution_x * scale), int(r.resolution_y * scale)), "scene render size"
-
-
 def check_size(name: str, camera_name: str, photo_size, want, source: str) -> str:
     """'' when the photo is its camera's size, a note when it is the same aspect
     ratio scaled; ValueError (one sentence) otherwise. Sizes are (width, height)."""
@@ -103,7 +92,8 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     photo_io.check_finite(radiance, photo.name, mask)
     if settings.clip_level > 0:  # on the file's values, before any scaling
         saturated = saturated | np.any(radiance >= settings.clip_level, axis=-1)
-    want, source = camera_size(scene, photo.camera)
+    want, source = gbuffer.camera_resolution(photo.camera, scene)
+    want = (int(want[0]), int(want[1]))
     note = check_size(photo.name, photo.camera.name, (w, h), want, source)
     if note:
         report["scaled"] = note
@@ -115,6 +105,9 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
         reference_mask = photo_io.read_mask(bpy.path.abspath(photo.reference_mask_path),
                                             (h, w))
     if photo.camera.get("brdf_colmap_distorted"):
+        if "brdf_colmap_params" not in photo.camera:  # imported by an older version
+            raise ValueError(f"camera {photo.camera.name} has lens distortion but no stored "
+                             "lens parameters; import its COLMAP model again")
         model = str(photo.camera["brdf_colmap_camera_model"])
         params = [float(x) for x in photo.camera["brdf_colmap_params"]]
         args = (model, params, *want)
@@ -176,7 +169,7 @@ def apply_irradiance(gathered: list[GatheredPhoto]) -> tuple[list[pipeline.Photo
     references = [g.reference for g in gathered]
     if all(r is None for r in references):
         given = np.array([np.asarray(g.input.irradiance, dtype=np.float64) for g in gathered])
-        if np.allclose(given, given[0], rtol=0, atol=0):
+        if (given == given[0]).all():
             return [g.input for g in gathered], [
                 "no grey card or reference region: irradiance assumed equal across photos"]
         return [g.input for g in gathered], ["no grey card or reference region: irradiance "

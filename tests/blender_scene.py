@@ -62,17 +62,20 @@ def build(tmp: pathlib.Path, photo: bool = True) -> dict:
     return {"scene": scene, "scan": scan, "camera": camera, "sun": sun, **paths}
 
 
-def render_photo(scene, path: pathlib.Path, size: int = SIZE) -> None:
-    """Direct light only, linear float EXR, no view transform; size x size pixels."""
+def render_photo(scene, path: pathlib.Path, size: int | tuple[int, int] = SIZE, *,
+                 samples: int = 32, bounces: int = 0, transparent: bool = True) -> None:
+    """Linear float EXR, no view transform, no denoising, CPU; ``size`` x ``size``
+    pixels (or (width, height)). Direct light only by default; ``bounces`` > 0
+    lets a mirror show what the light lights."""
     r = scene.render
     scene.render.engine = "CYCLES"
-    scene.cycles.samples = 32
+    scene.cycles.samples = samples
     scene.cycles.use_denoising = False
-    scene.cycles.max_bounces = 0
+    scene.cycles.max_bounces = bounces
     scene.cycles.device = "CPU"
-    r.resolution_x = r.resolution_y = size
+    r.resolution_x, r.resolution_y = (size, size) if isinstance(size, int) else size
     r.resolution_percentage = 100
-    r.film_transparent = True
+    r.film_transparent = transparent
     scene.view_settings.view_transform = "Standard"
     r.image_settings.file_format = "OPEN_EXR"
     r.image_settings.color_depth = "32"

@@ -318,3 +318,13 @@ def test_a_new_photo_takes_the_last_ones_light_with_its_date_and_place(tiny):
     assert unmatched == []
     assert (added.light_source, added.when, added.latitude, added.place_from_exif,
             added.color_space) == ("SUN_POSITION", "2026-03-01 10:00:00", 35.0, True, "SRGB")
+
+
+def test_a_distorted_camera_without_lens_parameters_is_one_clear_error(tiny):
+    """A camera imported before the lens parameters were stored: flagged distorted,
+    nothing to undistort with."""
+    cam = tiny["camera"]
+    cam["brdf_colmap_distorted"], cam["brdf_colmap_camera_model"] = True, "OPENCV"
+    _entry(tiny, tiny["photo"])
+    with pytest.raises(ValueError, match="no stored lens parameters; import its COLMAP"):
+        runner.gather_capture(tiny["scene"])

@@ -30,6 +30,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
+import blender_scene as BS  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
 from brdf_reconstruct.core import light_probe as lp  # noqa: E402
@@ -126,20 +127,8 @@ def render_probe(path: pathlib.Path, kind: str | None, light_dir, *, size=SIZE,
     sun.rotation_mode = "QUATERNION"  # a Sun shines down its -Z: +Z points to it
     sun.rotation_quaternion = Vector((0, 0, 1)).rotation_difference(Vector(tuple(light_dir)))
 
-    r = scene.render
-    r.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_denoising = False
-    scene.cycles.max_bounces = 2  # the mirror shows the lit wall
-    r.resolution_x, r.resolution_y = size
-    r.resolution_percentage = 100
-    r.film_transparent = False
-    scene.view_settings.view_transform = "Standard"
-    r.image_settings.file_format = "OPEN_EXR"
-    r.image_settings.color_depth = "32"
-    r.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
+    # two bounces: the mirror shows the lit wall
+    BS.render_photo(scene, path, size, samples=samples, bounces=2, transparent=False)
 
     image = photo_io.read_photo(str(path))
     h, w = image.shape[:2]

@@ -110,6 +110,12 @@ radius = 33.0
      r"\[photo.sun\] has unknown keys: time"),
     ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\ngrey_card = "lit/0012.exr"\n'
      'reference_region = "lit/0012.exr"', "both grey_card and reference_region"),
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\n[photo.sun]\nlatitude = 48.1',
+     "needs both latitude and longitude"),
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\n[photo.probe]\n'
+     'image = "lit/probe.exr"\ncenter = [10, 20]', "needs both center and radius"),
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\n[photo.probe]\n'
+     'image = "lit/probe.exr"\ncenter = [10]\nradius = 5', "probe center must be"),
     ('object = [', "not valid TOML"),
 ])
 def test_mistakes_are_one_sentence(folder, text, message):
