@@ -11,15 +11,31 @@ Blender glue in ``brdf_addon`` is imported only when Blender calls
 """
 
 
-def register() -> None:
-    """Register the add-on's classes and properties with Blender."""
-    from . import brdf_addon
+def _classes() -> tuple:
+    """Every class to register, in dependency order: ``brdf_addon``'s (preferences,
+    property groups, panel), then the operators."""
+    from . import brdf_addon, operators
 
-    brdf_addon.register()
+    return brdf_addon.CLASSES + operators.CLASSES
+
+
+def register() -> None:
+    """Register the extension's classes and attach ``Scene.brdf``."""
+    import bpy
+
+    from .brdf_addon import props
+
+    for cls in _classes():
+        bpy.utils.register_class(cls)
+    props.attach()
 
 
 def unregister() -> None:
     """Undo ``register()``."""
-    from . import brdf_addon
+    import bpy
 
-    brdf_addon.unregister()
+    from .brdf_addon import props
+
+    props.detach()
+    for cls in reversed(_classes()):
+        bpy.utils.unregister_class(cls)

@@ -8,7 +8,7 @@ camera and a user would produce, and each is run through
 (Balanced preset, seed 0 as ``make demo``, then seeds 1 to 3 with every variant:
 the spread of the random-subset trials). The table read back from
 ``out/brdf_0.binary`` is scored against the capture's ``truth.binary`` with
-``core.metrics.sphere_error`` and ``brdf_log_rmse``. Variants:
+``core.brdf.metrics.sphere_error`` and ``brdf_log_rmse``. Variants:
 
 - ``exr``: the capture as is, through ``capture.preset_job`` (the demo's job): the
   baseline, which must give the demo's numbers.
@@ -16,7 +16,7 @@ the spread of the random-subset trials). The table read back from
   that the brightest pixel of the set is 0.9 of full scale; EXIF ExposureTime,
   FNumber and ISO as ``Exif:ISOSpeed`` (OIIO's TIFF writer drops
   ``Exif:ISOSpeedRatings`` / ``PhotographicSensitivity``, keeps ``Exif:ISOSpeed``,
-  which ``core.exif`` reads). EXIF only gives scales relative to the first photo
+  which ``core.capture.exif`` reads). EXIF only gives scales relative to the first photo
   (``exif.exposure_scales``), so the absolute scale s goes into the job as the
   light's irradiance in the photos' units, ``irradiance = s``.
 - ``jpeg8``: 8-bit sRGB JPEG, quality 95, the same scale and handling, ISO as
@@ -32,20 +32,20 @@ the spread of the random-subset trials). The table read back from
 - ``distorted_<lens>``: the EXR photos resampled through an OPENCV lens (cubic
   spline of the pinhole photo at the pinhole position of each distorted pixel)
   and the COLMAP model rewritten through pycolmap with that camera model
-  (``core.colmap.synthetic_reconstruction``, the poses, intrinsics and points
+  (``testkit.synthetic.synthetic_reconstruction``, the poses, intrinsics and points
   of the capture's model), so the product must undistort them; and
   ``distorted_<lens>_ignored``: the same photos with the capture's PINHOLE model
   (a user who ignores the distortion). Lenses: barrel (k1 -0.15, k2 0.02) and
   pincushion (k1 0.1, k2 -0.01), p1 = p2 = 0. Beside the runs: the round trip
-  distort -> ``core.undistort.undistort_image`` (order 1, the product's, and
+  distort -> ``core.capture.undistort.undistort_image`` (order 1, the product's, and
   order 3) against the original photo, the resampling cost alone, and the
   distorted photo against the original (the misalignment a PINHOLE model keeps).
 
 Recorded per variant: the two errors, the report's counts (observed, reliable,
 saturated, removed per stage) and the stages its region skipped, the batch
 subprocess's wall time, the report's ``capture`` section, and what was written
-(scales; EXIF read back through ``core.photo_io.read_metadata`` and
-``core.exif.exposure_settings``; the clipped share; for the integer files the
+(scales; EXIF read back through ``core.capture.photo_io.read_metadata`` and
+``core.capture.exif.exposure_settings``; the clipped share; for the integer files the
 decoded pixels against the EXR: the share of object pixels more than 2x off in the
 monotonicity stage's log measure).
 Writes ``bench/results/camera_inputs.json`` and ``camera_inputs.png``.
@@ -152,7 +152,7 @@ def quantise(values: np.ndarray, dtype) -> np.ndarray:
 
 def metadata_check(path: pathlib.Path) -> dict:
     """What the product's readers make of a written file's exposure EXIF."""
-    from brdf_reconstruct.core import exif, photo_io
+    from brdf_reconstruct.core.capture import exif, photo_io
 
     exposure = exif.exposure_settings(photo_io.read_metadata(path))
     return {"file": path.name, "exposure_read_back": exposure.describe() if exposure else None,
@@ -161,12 +161,12 @@ def metadata_check(path: pathlib.Path) -> dict:
 
 def decoded_vs_exr(path: pathlib.Path, exr_rgb: np.ndarray, obj: np.ndarray,
                    scale: float) -> dict:
-    """The written file as the product decodes it (``core.photo_io.read_photo_file``),
+    """The written file as the product decodes it (``core.capture.photo_io.read_photo_file``),
     divided by the scale, against the EXR on the object's pixels: the share of pixels
     more than a factor 2 off in some channel, in the monotonicity stage's log measure
-    (``ln(x + delta)``, delta = 1e-3 x the channel's median, ``core.reliable``), and
+    (``ln(x + delta)``, delta = 1e-3 x the channel's median, ``core.method.reliable``), and
     the share decoded as 0 in some channel."""
-    from brdf_reconstruct.core import photo_io
+    from brdf_reconstruct.core.capture import photo_io
 
     got = photo_io.read_photo_file(path).radiance[obj] / scale
     ref = exr_rgb[obj]
@@ -228,7 +228,7 @@ def integer_variant(work, capture_dir, lit, kind: str) -> Variant:
     rgb = [pixels[..., :3].astype(np.float64) for pixels, _ in lit]
     if kind == "clipped":
         # code 255 where the sRGB value rounds up to it: linear >= decode(254.5 / 255)
-        from brdf_reconstruct.core.photo_io import srgb_to_linear
+        from brdf_reconstruct.core.capture.photo_io import srgb_to_linear
 
         threshold = float(srgb_to_linear(254.5 / 255.0))
         peaks = np.concatenate([p[..., :3].max(-1)[p[..., 3] >= 0.5] for p, _ in lit])
@@ -260,7 +260,7 @@ def integer_variant(work, capture_dir, lit, kind: str) -> Variant:
                         "light": entry["light"], "irradiance": scale})
     info = {"scale": scale, "irradiance_in_job": scale,
             "why_irradiance": "EXIF gives exposure relative to the first photo only "
-                              "(core.exif.exposure_scales); the absolute scale s of the "
+                              "(core.capture.exif.exposure_scales); the absolute scale s of the "
                               "pixel values is the light's irradiance in the photos' units",
             "files": written,
             "object_pixels": object_pixels, "object_pixels_clipped": clipped_object,
@@ -299,7 +299,7 @@ def distort_photo(pixels: np.ndarray, model_params, width: int, height: int) -> 
     alpha 0 outside the pinhole view)."""
     from scipy import ndimage
 
-    from brdf_reconstruct.core import colmap
+    from brdf_reconstruct.core.capture import colmap
 
     camera = colmap.pycolmap_camera("OPENCV", model_params, width, height)
     fx, fy, cx, cy = model_params[:4]
@@ -320,7 +320,8 @@ def distort_photo(pixels: np.ndarray, model_params, width: int, height: int) -> 
 def distorted_variants(work, capture_dir, lit, lens: str) -> list[Variant]:
     """``distorted_<lens>`` (OPENCV model, the product undistorts) and
     ``distorted_<lens>_ignored`` (the same photos, the capture's PINHOLE model)."""
-    from brdf_reconstruct.core import colmap, undistort
+    from brdf_reconstruct.core.capture import colmap, undistort
+    from testkit import synthetic
 
     k1, k2 = LENSES[lens]
     model = colmap.read_model(capture_dir / "sparse" / "0")
@@ -331,7 +332,7 @@ def distorted_variants(work, capture_dir, lit, lens: str) -> list[Variant]:
     sparse.mkdir(parents=True)
     views = [(im.name, "OPENCV", [im.fx, im.fy, im.cx, im.cy, k1, k2, 0.0, 0.0], im.width,
               im.height, im.R_cam_from_world, im.t_cam_from_world) for im in model.images]
-    colmap.synthetic_reconstruction(views, model.xyz).write(str(sparse))
+    synthetic.synthetic_reconstruction(views, model.xyz).write(str(sparse))
     entries, round_trip, round_trip_cubic, ignored_error, shift = [], [], [], [], []
     for (pixels, spec), entry in zip(lit, photo_entries(capture_dir), strict=True):
         im = by_name[entry["camera"]]
@@ -365,7 +366,7 @@ def distorted_variants(work, capture_dir, lit, lens: str) -> list[Variant]:
             "ignored_rel_rmse_object": ignored_error,
             "round_trip_note": "relative RMSE against the original photo over the object's "
                                "pixels (EXR alpha >= 0.5): the distorted photo undistorted by "
-                               "core.undistort.undistort_image with the product's default "
+                               "core.capture.undistort.undistort_image with the product's default "
                                "order 1 (bilinear; what the batch run does) and with order 3; "
                                "ignored: the distorted photo as it is (what a PINHOLE model "
                                "makes of it)"}
@@ -383,7 +384,7 @@ def distorted_variants(work, capture_dir, lit, lens: str) -> list[Variant]:
 
 def ensure_capture(material: str) -> tuple[pathlib.Path, float | None]:
     """The demo's capture of ``material`` (generated now if missing: seconds, else None)."""
-    import capture
+    from testkit import capture
 
     settings = (material, CAPTURE["views"], CAPTURE["lit"], CAPTURE["resolution"],
                 CAPTURE["seed"])
@@ -397,7 +398,7 @@ def ensure_capture(material: str) -> tuple[pathlib.Path, float | None]:
 
 def run_batch(job: pathlib.Path, out: pathlib.Path, truth: np.ndarray) -> dict:
     """The batch entry on ``job`` in a fresh subprocess; the scores and the report."""
-    from brdf_reconstruct.core import merl, metrics
+    from brdf_reconstruct.core.brdf import merl, metrics
 
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
@@ -428,9 +429,8 @@ def run_batch(job: pathlib.Path, out: pathlib.Path, truth: np.ndarray) -> dict:
 
 
 def run_material(material: str, work: pathlib.Path, seeds: list[int]) -> dict:
-    import capture
-
-    from brdf_reconstruct.core import database, merl, metrics
+    from brdf_reconstruct.core.brdf import database, merl, metrics
+    from testkit import capture
 
     capture_dir, generated_s = ensure_capture(material)
     truth = merl.read(capture_dir / "truth.binary")
@@ -579,7 +579,7 @@ def main(argv=None) -> int:
                         "is the headline (the demo's 0)")
     parser.add_argument("--out", default=str(RESULTS / "camera_inputs.json"))
     args = parser.parse_args(argv)
-    import capture
+    from testkit import capture
 
     t0 = time.perf_counter()
     seeds = [int(x) for x in args.seeds.split(",")]
@@ -603,7 +603,7 @@ def main(argv=None) -> int:
         "what": "The demo's capture turned into photos and job files as cameras and users "
                 "produce them, each run through `python -m brdf_reconstruct.brdf_addon.batch "
                 "job.toml` in a fresh subprocess, scored against the capture's truth.binary "
-                "(core.metrics.sphere_error, brdf_log_rmse). vs_baseline: ratio to exr.",
+                "(core.brdf.metrics.sphere_error, brdf_log_rmse). vs_baseline: ratio to exr.",
         "capture": {"object": capture.default_subject(), **CAPTURE,
                     "resolution": list(CAPTURE["resolution"]),
                     "note": "seed: the capture's (scan noise), fixed; the batch runs' seeds are "

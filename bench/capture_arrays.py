@@ -12,7 +12,7 @@ hundreds of times, so this module keeps what does not change:
   same direct-light model the Cycles table shader renders; they agree within
   1 % on unshadowed pixels, ``tests/test_blender_table_shader.py``), paired with
   the scan's G-buffers as ``pipeline.PhotoInput``s, exactly what the extension
-  hands to ``core.pipeline``.
+  hands to ``core.method.pipeline``.
 
 One difference from the Cycles photos: the numpy photo holds the radiance at
 the pixel centre, a Cycles photo the pixel's average (anti-aliasing). The demo
@@ -62,9 +62,8 @@ def gbuffers(resolution=(240, 180), n_views: int = 6, lit_views=(0, 2, 4), light
     wall seconds of the Cycles G-buffer renders (0 when read from the cache).
     Resets Blender to an empty scene when it has to render.
     """
-    import capture
-
-    from brdf_reconstruct.core import basis
+    from brdf_reconstruct.core.brdf import basis
+    from testkit import capture
 
     light = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
     mesh = pathlib.Path(mesh) if mesh else None
@@ -92,7 +91,7 @@ def build_scene(resolution=(240, 180), n_views: int = 6, seed: int = 0,
     """``capture.build_scene`` with its COLMAP model in a temporary folder:
     ``(truth, scan, cameras)``; the same arguments give the same scan as
     :func:`gbuffers` rendered."""
-    import capture
+    from testkit import capture
 
     with tempfile.TemporaryDirectory() as tmp:  # one point at the origin: the model the
         # cached arrays and bench/results were rendered with
@@ -143,7 +142,7 @@ def photo_inputs(arrays: dict, table: np.ndarray, *, irradiance=1.0, noise: floa
     ``ObservationSettings.clip_level`` decides what it then removes). views: the
     lit-view indices to use (default all). Returns ``pipeline.PhotoInput``s.
     """
-    from brdf_reconstruct.core import pipeline, selection
+    from brdf_reconstruct.core.method import pipeline, selection
 
     light = np.asarray(arrays["light"], dtype=np.float64)
     rng = np.random.default_rng(seed)

@@ -20,7 +20,8 @@ import time
 
 import numpy as np
 
-from brdf_reconstruct.core import basis, database, merl, metrics, reconstruct, render, sampling
+from brdf_reconstruct.core.brdf import basis, database, merl, metrics, render
+from brdf_reconstruct.core.method import reconstruct, sampling
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 SAMPLE_COUNTS = (1, 2, 5, 10, 20, 40)

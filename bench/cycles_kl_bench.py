@@ -29,13 +29,13 @@ REFERENCE = 256
 
 
 def main() -> dict:
-    import blender_scene as BS
     import bpy
 
     import brdf_reconstruct
-    from brdf_reconstruct.brdf_addon import cycles_select, runner
-    from brdf_reconstruct.core import database, merl, pipeline, selection
-    from brdf_reconstruct.operators import photos
+    from brdf_reconstruct.brdf_addon import cycles_select, photo_list, runner
+    from brdf_reconstruct.core.brdf import database, merl
+    from brdf_reconstruct.core.method import pipeline, selection
+    from testkit import blender_scene as BS
 
     def lambert(albedo):
         t = np.full((3, merl.N_CELLS), np.nan)
@@ -47,7 +47,7 @@ def main() -> dict:
     brdf_reconstruct.register()
     scene = built["scene"]
     scene.brdf.target = built["scan"]
-    (p,), _ = photos.add_photos(scene, [str(built["photo"])])
+    (p,), _ = photo_list.add_photos(scene, [str(built["photo"])])
     p.irradiance = (BS.lit_irradiance(),) * 3
     inputs = runner.gather(scene)
     gold = next(s for s in database.heldout_specs() if s["name"] == "heldout_gold_medium")

@@ -49,14 +49,14 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="demo_out")
     args = parser.parse_args(argv)
 
-    from brdf_reconstruct.core import basis, database, merl, metrics, render
+    from brdf_reconstruct.core.brdf import basis, database, merl, metrics, render
 
     heldout = {s["name"]: s for s in database.heldout_specs()}
     if args.material not in heldout:
         print(f"error: unknown material {args.material!r}; choose one of "
               f"{', '.join(heldout)}", file=sys.stderr)
         return 2
-    import capture
+    from testkit import capture
 
     subject = capture.default_subject()
     if subject != "bunny":  # the capture falls back to Suzanne, which needs more pixels
@@ -150,7 +150,7 @@ def slice_135(table: np.ndarray, n_points: int = 181):
     """BRDF in the plane of incidence for light at 45 degrees from the normal (the paper's
     'incident angle 135 degrees' plots), view angle from -90 to 90 degrees.
     Returns (angles (P,) degrees, values (P, 3) 1/sr)."""
-    from brdf_reconstruct.core import merl
+    from brdf_reconstruct.core.brdf import merl
 
     ti = np.radians(45.0)
     to = np.radians(np.linspace(-89.5, 89.5, n_points))

@@ -11,8 +11,8 @@ Scene: the capture's bunny as arrays (``bench/capture_arrays.py``): Cycles
 G-buffers of the ground truth and of its degraded scan for the lit cameras
 (240 x 180 pixels, 3 lit views of the 6-camera ring, by default), photos shaded
 with numpy from the truth's G-buffers with 1 % seeded noise. Each case runs
-``core.pipeline.run`` (default ``PipelineSettings``: 20 condition-optimal cells,
-16 random-subset trials, KL selection) and then the bake, ``core.lobe_fit.fit``
+``core.method.pipeline.run`` (default ``PipelineSettings``: 20 condition-optimal cells,
+16 random-subset trials, KL selection) and then the bake, ``core.bake.fitting.fit``
 on the chosen table, whose ``tabulate``d lobes are what the Blender material
 renders. Cases:
 

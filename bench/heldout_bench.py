@@ -1,6 +1,6 @@
 """Ours against a Mitsuba 3 Principled fit on the 12 held-out materials (issue 5).
 
-For every held-out material (``core.database.heldout_specs``):
+For every held-out material (``core.brdf.database.heldout_specs``):
 
 1. The bunny capture of the demo (``bench/capture.py``: 6 views, 3 lit photos,
    240 x 180, seed 0), generated once into
@@ -53,7 +53,7 @@ def capture(material: str, views: int = 6, lit: int = 3, width: int = 240, heigh
             seed: int = 0) -> tuple[pathlib.Path, bool]:
     """The capture folder of ``material`` (generated if missing; the demo's cache,
     ``capture.cache_folder``) and whether it was generated now."""
-    import capture as capture_module
+    from testkit import capture as capture_module
 
     settings = (material, views, lit, (width, height), seed)
     folder = capture_module.cache_folder(*settings)
@@ -67,9 +67,8 @@ def capture(material: str, views: int = 6, lit: int = 3, width: int = 240, heigh
 def run_ours(folder: pathlib.Path) -> dict:
     """Run the batch entry on the Balanced job; table, wall time and the report's
     stage timings (seconds)."""
-    import capture as capture_module
-
-    from brdf_reconstruct.core import merl
+    from brdf_reconstruct.core.brdf import merl
+    from testkit import capture as capture_module
 
     job = capture_module.preset_job(folder, "BALANCED")
     out = folder / "out"
@@ -93,7 +92,7 @@ def run_mitsuba(folder: pathlib.Path, iterations: int, spp: int) -> dict:
     """Run ``bench/mitsuba_peer.py`` on the capture in a subprocess; table, wall
     time and the peer's own summary (stage seconds, fitted parameters, loss curve,
     camera check)."""
-    from brdf_reconstruct.core import merl
+    from brdf_reconstruct.core.brdf import merl
 
     with tempfile.TemporaryDirectory() as tmp:
         table_path, summary_path = pathlib.Path(tmp) / "fit.binary", pathlib.Path(tmp) / "fit.json"
@@ -160,9 +159,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     sys.path.insert(0, str(HERE))
-    import mitsuba_peer
-
-    from brdf_reconstruct.core import database, merl, metrics
+    from brdf_reconstruct.core.brdf import database, merl, metrics
+    from testkit import mitsuba_peer
 
     every = [s["name"] for s in database.heldout_specs()]
     if args.materials:

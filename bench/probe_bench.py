@@ -51,7 +51,7 @@ def _angle_deg(a, b):
 
 def measure(photo) -> dict:
     """Errors and uncertainties (degrees) of one photo, HDR and clipped, auto and true circle."""
-    from brdf_reconstruct.core import light_probe as lp
+    from brdf_reconstruct.core.capture import light_probe as lp
 
     cam, rot = photo["camera"], photo["rotation"]
     t0 = time.perf_counter()
@@ -88,7 +88,7 @@ def summarise(rows) -> dict:
 
 
 def main(quick: bool = False) -> dict:
-    import test_blender_probe as scene
+    from testkit import probe_scene as scene
 
     tmp = pathlib.Path(tempfile.mkdtemp())
     cases, summary = [], {}

@@ -1,7 +1,7 @@
 """Reliable-region ablation on synthetic blunted geometry (issue 3, the paper's Fig. 3e
 against Sec. 3.1-3.2). Writes ``bench/results/reliable.json`` and ``reliable.png``.
 
-Scene (``core.synthetic``): a height field with sharp ridges and cones, seen from
+Scene (``testkit.synthetic``): a height field with sharp ridges and cones, seen from
 above; photos are shaded with the TRUE geometry and a held-out material under
 four distant lights (1 % noise); the pipeline only sees the BLUNTED, noisy
 "photogrammetry" geometry. Variants: all pixels (no constraint), each constraint
@@ -125,7 +125,8 @@ SPEED_CODE = """
 import json, sys, time
 sys.path.insert(0, {bench!r})
 import reliable_bench as RB
-from brdf_reconstruct.core import database, reliable
+from brdf_reconstruct.core.brdf import database
+from brdf_reconstruct.core.method import reliable
 table = database.make_table(database.heldout_specs()[4])
 truth, scan, photos = RB.capture(table, 512, 0)
 RB.observe_all(scan, photos)  # warm-up

@@ -8,8 +8,8 @@ Run::
     .venv/bin/python bench/scaling_bench.py --quick    # small frames, writes scaling_quick.*
     .venv/bin/python bench/scaling_bench.py --max-gib 8   # lower memory budget per point
 
-Two sweeps of the whole core run (``core.pipeline.run`` with default
-``PipelineSettings``, then the bake ``core.lobe_fit.fit`` on the chosen table, as
+Two sweeps of the whole core run (``core.method.pipeline.run`` with default
+``PipelineSettings``, then the bake ``core.bake.fitting.fit`` on the chosen table, as
 the extension does), on the bunny of ``bench/capture_arrays.py`` with the
 held-out gold (``MATERIAL``), photos shaded by numpy on the truth's Cycles
 G-buffers with 1 % noise, the pipeline given the scan's G-buffers:
@@ -115,7 +115,7 @@ def load_inputs(files: list[str]) -> list:
     photo (H, W, 3) float64 radiance; scan normal, position (H, W, 3) and visibility
     (H, W) float32 from Cycles, widened to float64 as ``capture_arrays.photo_inputs``
     does; region (H, W) int32; camera_center, light (3,) float64."""
-    from brdf_reconstruct.core import pipeline
+    from brdf_reconstruct.core.method import pipeline
 
     inputs = []
     for path in files:
@@ -132,7 +132,9 @@ def load_inputs(files: list[str]) -> list:
 def child(spec: dict) -> dict:
     """One point: load the basis and the inputs, run the pipeline and the bake, and
     return seconds per stage and memory in bytes."""
-    from brdf_reconstruct.core import basis, lobe_fit, pipeline
+    from brdf_reconstruct.core.bake import fitting
+    from brdf_reconstruct.core.brdf import basis
+    from brdf_reconstruct.core.method import pipeline
 
     t0 = time.perf_counter()
     B = basis.load_default()
@@ -153,7 +155,7 @@ def child(spec: dict) -> dict:
     out["pipeline_cpu_s"] = _cpu_s() - c0
     region = next(r for r in result.regions if r.status == "ok")
     t0, c0 = time.perf_counter(), _cpu_s()
-    lobe_fit.fit(region.table)
+    fitting.fit(region.table)
     bake = time.perf_counter() - t0
     out["bake_cpu_s"] = _cpu_s() - c0
     out["total_cpu_s"] = out["pipeline_cpu_s"] + out["bake_cpu_s"]
@@ -391,7 +393,7 @@ def main(argv=None) -> int:
     if args.child:
         print(json.dumps(child(json.loads(args.child))), flush=True)
         return 0
-    from brdf_reconstruct.core import database
+    from brdf_reconstruct.core.brdf import database
 
     t_start = time.perf_counter()
     info = machine()
@@ -446,7 +448,7 @@ def main(argv=None) -> int:
         "material": spec,
         "photo_noise_relative": NOISE,
         "settings": "pipeline.PipelineSettings() defaults (20 cells, 16 trials, KL over "
-                    "64 bins); bake = lobe_fit.fit(chosen table) with its error report, as "
+                    "64 bins); bake = fitting.fit(chosen table) with its error report, as "
                     "brdf_addon.runner does",
         "notes": [
             f"Photo-count sweep: {ring} distinct cameras rendered by Cycles at "
@@ -468,7 +470,7 @@ def main(argv=None) -> int:
             "peak_rss - rss_before_run.",
             "Stages: observations, reliable, sampling, reconstruction, selection from "
             "PipelineResult.timings (summed over regions; the bunny is one region), bake = "
-            "lobe_fit.fit. Seconds are wall time of one run on a loaded machine.",
+            "fitting.fit. Seconds are wall time of one run on a loaded machine.",
         ],
         "photos": photos_rows,
         "pixels": pixel_rows,

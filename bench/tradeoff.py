@@ -20,7 +20,7 @@ of the scan per photo, measured when the capture was rendered; observations,
 reliable region, sampling, reconstruction, selection, bake = the lobe fit),
 peak memory (the child's max RSS), and the errors against the truth: BRDF log
 RMSE and the rendered-sphere relative RMSE under three evaluation lights
-(``core.metrics.sphere_error``) of the chosen table and of the baked material.
+(``core.brdf.metrics.sphere_error``) of the chosen table and of the baked material.
 
 **Presets**: the Fast / Balanced / Accurate settings of ``brdf_addon.props.PRESETS``
 run as points of their own, so the README quotes what each measured.
@@ -107,7 +107,7 @@ STAGES = ("gbuffers", "observations", "reliable", "sampling", "reconstruction", 
 
 
 def _basis(components: int):
-    from brdf_reconstruct.core import basis
+    from brdf_reconstruct.core.brdf import basis
 
     if components <= basis.N_COMPONENTS:
         full = basis.load_default()
@@ -120,7 +120,7 @@ def _basis(components: int):
 
 
 def _spec(name: str) -> dict:
-    from brdf_reconstruct.core import database
+    from brdf_reconstruct.core.brdf import database
 
     return {s["name"]: s for s in database.heldout_specs()}[name]
 
@@ -150,7 +150,9 @@ def run_point(point: Point) -> dict:
 
     import capture_arrays
 
-    from brdf_reconstruct.core import database, lobe_fit, metrics, pipeline, reliable
+    from brdf_reconstruct.core.bake import fitting, lobes
+    from brdf_reconstruct.core.brdf import database, metrics
+    from brdf_reconstruct.core.method import pipeline, reliable
 
     arrays = capture_arrays.gbuffers(
         resolution=point.resolution, scan_options=EXACT_SCAN if point.scan == "exact" else None)
@@ -173,8 +175,8 @@ def run_point(point: Point) -> dict:
         winner, timings["selection"] = _cycles_select(point, arrays, inputs, region.candidates)
     table = np.asarray(region.candidates[winner], dtype=np.float64)
     t0 = time.perf_counter()
-    fit = lobe_fit.fit(table, errors=False)
-    baked = lobe_fit.tabulate(fit.params)
+    fit = fitting.fit(table, errors=False)
+    baked = lobes.tabulate(fit.params)
     timings["bake"] = time.perf_counter() - t0
     trial_errors = [metrics.sphere_error(np.asarray(c, np.float64), truth)
                     for c in region.candidates]
@@ -312,7 +314,8 @@ def run_ablation(quick: bool) -> dict:
     """The paper's ablation on the blunted bunny, all held-out materials (in-process)."""
     import capture_arrays
 
-    from brdf_reconstruct.core import basis, database, metrics, pipeline, reliable
+    from brdf_reconstruct.core.brdf import basis, database, metrics
+    from brdf_reconstruct.core.method import pipeline, reliable
 
     arrays = capture_arrays.gbuffers()
     B = basis.load_default()

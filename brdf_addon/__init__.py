@@ -1,25 +1,13 @@
-"""Blender-facing glue that is not an operator: properties, panels, registration.
+"""Blender glue that is not an operator: properties, preferences, the panel, and the
+library the operators and the batch entry share (light sources, COLMAP import,
+photo list, G-buffers, the run, the material, the job file).
 
-Each UI module holds a ``CLASSES`` tuple; ``register()`` concatenates them in
-dependency order (property groups before the panels and operators that use
-them) and registers them with ``bpy.utils.register_classes_factory``.
+``CLASSES`` holds this package's classes in dependency order (preferences and
+property groups first, then the panel); the extension's root ``__init__.py``
+registers them together with ``operators.CLASSES``. Nothing here imports
+``operators``: an operator calls into this package, never the other way.
 """
 
-import bpy
-
-from .. import operators
 from . import panel, prefs, props
 
-CLASSES = prefs.CLASSES + props.CLASSES + operators.CLASSES + panel.CLASSES
-
-_register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
-
-
-def register() -> None:
-    _register_classes()
-    props.attach()
-
-
-def unregister() -> None:
-    props.detach()
-    _unregister_classes()
+CLASSES = prefs.CLASSES + props.CLASSES + panel.CLASSES

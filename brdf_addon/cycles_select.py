@@ -1,11 +1,11 @@
 """The accurate selection path: KL of Cycles renders against the photos.
 
-The fast path (``core.selection``) shades each candidate *table* on the
+The fast path (``core.method.selection``) shades each candidate *table* on the
 G-buffers in numpy. This path renders what the user will actually get: each
-candidate is baked to a material (``core.lobe_fit`` + ``brdf_addon.material``),
+candidate is baked to a material (``core.bake.fitting`` + ``brdf_addon.material``),
 the scan is rendered by Cycles from each photo's camera under that photo's
 light, and the KL divergence of the region's pixel intensities against the
-photo's (``core.kl``, same bins and floor as the fast path) scores it.
+photo's (``core.method.kl``, same bins and floor as the fast path) scores it.
 
 Everything is built in a temporary scene: a copy of the scan object whose
 material slots are object-linked to the candidate material (the user's mesh
@@ -22,8 +22,10 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ..core import kl as kl_module
-from ..core import lobe_fit, photo_io, pipeline, selection
+from ..core.bake import fitting
+from ..core.capture import photo_io
+from ..core.method import kl as kl_module
+from ..core.method import pipeline, selection
 
 _NAME = "BRDF_KL"
 
@@ -107,7 +109,7 @@ def score_candidate(scene, inputs, region: int, table, samples: int = 16,
     views = pipeline.region_views(inputs, region)
     if not views:
         raise ValueError(f"region {region}: no photo sees it")
-    mat = material_module.build_material(f"{_NAME} candidate", lobe_fit.fit(table), {})
+    mat = material_module.build_material(f"{_NAME} candidate", fitting.fit(table), {})
     try:
         kl = np.zeros(len(views))
         for j, (i, v) in enumerate(zip(seen, views, strict=True)):

@@ -4,7 +4,7 @@ For one lit photo, Cycles renders the scan alone from the photo's camera and
 returns, per pixel of the photo: the shading normal and surface point (world
 space), the fraction of the distant light reaching the point (cast shadows), and
 the region id (the material slot of the face). These are what
-``core.observations.observe`` consumes.
+``core.method.observations.observe`` consumes.
 
 How it is rendered (nothing of the user's data is modified):
 

@@ -179,7 +179,7 @@ def apply(job: Job, scene) -> None:
     """Fill ``scene`` from the job: mesh, cameras, settings, photos and lights."""
     import bpy
 
-    from ..operators import import_colmap
+    from . import colmap_import
 
     if job.mesh is not None:
         before = set(bpy.data.objects)
@@ -197,11 +197,11 @@ def apply(job: Job, scene) -> None:
     settings = scene.brdf
     settings.target = target
     if job.colmap is not None:
-        import_colmap.import_cameras(scene, str(job.colmap))
+        colmap_import.import_cameras(scene, str(job.colmap))
     if job.up == "cameras":
-        from ..operators import light as light_ops
+        from . import light_sources
 
-        settings.scene_up = light_ops.up_from_cameras(scene)[0].tolist()
+        settings.scene_up = light_sources.up_from_cameras(scene)[0].tolist()
     elif job.up is not None:
         settings.scene_up = tuple(float(x) for x in job.up)
     # the preset first, then the job's own values over it (which makes it Custom)
@@ -240,7 +240,7 @@ def apply(job: Job, scene) -> None:
 def _camera(scene, name: str | None, image_name: str):
     """A camera by object name, else by COLMAP image name (exact, then stem); with
     no name, the camera matching the photo's own file name."""
-    from ..operators.photos import match_camera
+    from .photo_list import match_camera
 
     if name is None:
         try:

@@ -1,9 +1,9 @@
 """The baked material: a "BRDF Reconstruction" node group from a lobe fit, and its
 error measured in Cycles.
 
-:func:`build_material` turns a :class:`core.lobe_fit.LobeFit` into a NEW material
+:func:`build_material` turns a :class:`core.bake.fitting.LobeFit` into a NEW material
 whose tree is one group node (label "BRDF Reconstruction") feeding the Material
-Output. The group holds exactly the closures :mod:`core.lobe_fit` models, added
+Output. The group holds exactly the closures :mod:`core.bake.lobes` models, added
 together: a Diffuse BSDF (Lambert), per lobe a Glossy BSDF (GGX or Beckmann) plus
 a Metallic BSDF (same distribution, F82, black base, white edge tint: the Schlick
 grazing rise) behind a Mix Shader, and a Sheen BSDF (Ashikhmin). The fitted
@@ -12,7 +12,7 @@ values are the group node's inputs, so a user can see and tweak them.
 :func:`bake_error` renders a unit sphere with the material in Cycles, in a
 temporary scene (orthographic camera down -z, one Sun of known irradiance per
 light, black world, direct light only) and compares each image with numpy
-shading of the table (:func:`core.render.shade`) on the analytic sphere normals.
+shading of the table (:func:`core.brdf.render.shade`) on the analytic sphere normals.
 """
 
 from __future__ import annotations
@@ -27,18 +27,19 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ..core import lobe_fit, metrics, render
+from ..core.bake import fitting, lobes
+from ..core.brdf import metrics, render
 
 GROUP_NAME = "BRDF Reconstruction"
 _DISTRIBUTION = {"ggx": "GGX", "beckmann": "BECKMANN"}  # lobe_fit -> node enum
 
 
 # ------------------------------------------------------------------------- the material
-def _params(fit) -> lobe_fit.LobeParams:
-    if isinstance(fit, lobe_fit.LobeFit):
+def _params(fit) -> lobes.LobeParams:
+    if isinstance(fit, fitting.LobeFit):
         return fit.params
     if isinstance(fit, dict):
-        return lobe_fit.LobeParams.from_dict(fit)
+        return lobes.LobeParams.from_dict(fit)
     return fit
 
 
@@ -56,7 +57,7 @@ def _add_input(ng, name, socket_type, value, **limits):
 
 def build_node_group(params, name: str = GROUP_NAME) -> bpy.types.ShaderNodeTree:
     """A new shader node group (data-block ``name``, Blender adds a suffix on a clash)
-    rendering :class:`core.lobe_fit.LobeParams` ``params``. Inputs: "Diffuse Color",
+    rendering :class:`core.bake.lobes.LobeParams` ``params``. Inputs: "Diffuse Color",
     per lobe "Lobe i Color" / "Lobe i Roughness" / "Lobe i Grazing", "Sheen Color",
     "Sheen Roughness"; output "Shader"."""
     p = _params(params)
@@ -137,7 +138,7 @@ def build_material(name: str, fit, provenance: dict) -> bpy.types.Material:
     """A NEW material ``name`` (Blender suffixes it if taken; no existing material is
     touched) holding one "BRDF Reconstruction" group node -> Material Output.
 
-    fit: a :class:`core.lobe_fit.LobeFit` (or its params, or their dict).
+    fit: a :class:`core.bake.fitting.LobeFit` (or its params, or their dict).
     provenance: JSON-able facts about where the BRDF came from; each key is stored
     as the custom property ``"brdf_" + key`` (strings as they are, anything else as
     a JSON string), e.g. ``{"table_path": ..., "settings": {...}}`` gives
@@ -165,7 +166,7 @@ def build_material(name: str, fit, provenance: dict) -> bpy.types.Material:
         mat[f"brdf_{key}"] = (value if isinstance(value, str)
                               else json.dumps(value, sort_keys=True, default=str))
     mat["brdf_fit"] = json.dumps(params.to_dict(), sort_keys=True)
-    if isinstance(fit, lobe_fit.LobeFit):
+    if isinstance(fit, fitting.LobeFit):
         mat["brdf_errors"] = json.dumps(fit.errors, sort_keys=True)
         mat["brdf_fit_info"] = json.dumps(fit.info, sort_keys=True)
     return mat
@@ -319,7 +320,7 @@ def render_sphere_cycles(material, lights, resolution: int = 64, samples: int = 
     """Cycles images (H, W, 3) of a unit sphere with ``material``, one per light.
 
     lights: (L, 3) directions towards the light, camera space (+z towards the
-    viewer, +y up), as in :func:`core.render.render_sphere`. Pixels outside the
+    viewer, +y up), as in :func:`core.brdf.render.render_sphere`. Pixels outside the
     sphere are black. Uses and then removes a temporary scene.
     """
     lights = np.atleast_2d(np.asarray(lights, dtype=np.float64))
@@ -334,9 +335,9 @@ def bake_error(material, table, lights, resolution: int = 64, samples: int = 16,
 
     table: (3, 90, 90, 180) BRDF in 1/sr (NaN = unmeasured). lights: (L, 3)
     directions towards the light in camera space (+z to the viewer), as in
-    :func:`core.render.render_sphere`; the fit used the whole table, so any lights
+    :func:`core.brdf.render.render_sphere`; the fit used the whole table, so any lights
     are "held out" in the sense that none was singled out by the fit, but pick
-    ones other than the fit's own ``lobe_fit.ERROR_LIGHTS`` to check the bake
+    ones other than the fit's own ``fitting.ERROR_LIGHTS`` to check the bake
     independently. The Sun's strength is ``irradiance`` (W/m^2 on a surface facing
     it), the numpy side uses the same value. Samples: Cycles samples per pixel;
     with a delta Sun, direct light only and point-sampled pixels the render is
@@ -355,11 +356,11 @@ def bake_error(material, table, lights, resolution: int = 64, samples: int = 16,
     t0 = time.perf_counter()
     lights = np.atleast_2d(np.asarray(lights, dtype=np.float64))
     lights = lights / np.linalg.norm(lights, axis=1, keepdims=True)
-    table = lobe_fit.clean_table(table)
+    table = fitting.clean_table(table)
     normals, mask = render.sphere_normals(resolution)
     images = render_sphere_cycles(material, lights, resolution, samples, irradiance)
     stored = material.get("brdf_fit")
-    params = lobe_fit.LobeParams.from_dict(json.loads(stored)) if stored else None
+    params = lobes.LobeParams.from_dict(json.loads(stored)) if stored else None
     rel, model_rel = [], []
     for light, image in zip(lights, images, strict=True):
         ref = np.zeros((resolution, resolution, 3))
@@ -381,12 +382,12 @@ def bake_error(material, table, lights, resolution: int = 64, samples: int = 16,
 def shade_params(params, n: np.ndarray, light, irradiance: float = 1.0) -> np.ndarray:
     """Radiance (N, 3) of the lobe model at normals ``n`` (N, 3), camera space,
     seen from +z, lit from ``light`` (3,): what Cycles should render."""
-    from ..core import merl
+    from ..core.brdf import merl
 
     n = np.asarray(n, dtype=np.float64).reshape(-1, 3)
     light = np.asarray(light, dtype=np.float64)
     light = np.broadcast_to(light / np.linalg.norm(light), n.shape)
     view = np.broadcast_to(np.array([0.0, 0.0, 1.0]), n.shape)
-    rho = lobe_fit.evaluate(params, merl.to_local(n, light), merl.to_local(n, view))
+    rho = lobes.evaluate(params, merl.to_local(n, light), merl.to_local(n, view))
     cos = np.clip(np.sum(n * light, axis=1), 0.0, None)
     return rho * cos[:, None] * irradiance

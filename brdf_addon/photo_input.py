@@ -1,8 +1,8 @@
-"""A lit photo as a camera produced it, made ready for ``core.pipeline`` (bpy glue).
+"""A lit photo as a camera produced it, made ready for ``core.method.pipeline`` (bpy glue).
 
 For each entry of ``scene.brdf.photos`` :func:`gather_photo`:
 
-1. reads the file as linear radiance (``core.photo_io``: EXR and 16/32-bit TIFF
+1. reads the file as linear radiance (``core.capture.photo_io``: EXR and 16/32-bit TIFF
    linear, 8/16-bit PNG and JPEG sRGB unless the file or the user says linear,
    camera RAW only where OpenImageIO has LibRaw) and its saturated pixels (the
    file's largest code, or the Saturation Level setting, on the file's own
@@ -11,15 +11,15 @@ For each entry of ``scene.brdf.photos`` :func:`gather_photo`:
 3. checks the photo's size against its camera's: the same, or the same aspect
    ratio scaled (said in the report); anything else is an error;
 4. undistorts photo, masks and saturation through the COLMAP camera model
-   (``core.undistort``) when the camera has lens distortion, so the pixels line
+   (``core.capture.undistort``) when the camera has lens distortion, so the pixels line
    up with the Blender (pinhole) camera;
-5. finds the light (``operators.light.photo_light``) and renders the G-buffers;
+5. finds the light (``light_sources.photo_light``) and renders the G-buffers;
    the scan's silhouette is the mask, shrunk by the photo's silhouette margin;
 6. applies the exposure scale (user, or EXIF shutter/aperture/ISO through
-   ``core.exif``; :func:`exposure_plan` decides for all photos at once);
+   ``core.capture.exif``; :func:`exposure_plan` decides for all photos at once);
 7. gathers the irradiance reference (grey card or diffuse region of the scan),
    which :func:`apply_irradiance` turns into per-photo irradiance ratios
-   (``core.irradiance``).
+   (``core.capture.irradiance``).
 
 Every step says what it applied in the photo's ``report`` dict, which goes to
 ``report.json`` as ``capture``. Nothing of the user's is changed: files are only
@@ -34,9 +34,9 @@ import bpy
 import numpy as np
 from scipy import ndimage
 
-from ..core import exif, irradiance, photo_io, pipeline, undistort
-from ..operators import light as light_ops
-from . import gbuffer, prefs
+from ..core.capture import exif, irradiance, photo_io, undistort
+from ..core.method import pipeline
+from . import gbuffer, light_sources, prefs
 
 
 @dataclasses.dataclass
@@ -119,7 +119,7 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
             reference_mask = undistort.undistort_mask(reference_mask, *args)
         report["undistorted"] = f"{model} {np.round(params, 6).tolist()}"
     light_details = {}
-    light = light_ops.photo_light(scene, photo, light_details)
+    light = light_sources.photo_light(scene, photo, light_details)
     report["light"] = light_details | {"direction": light.tolist()}
     attribute = ("material_index" if settings.region_mode == "MATERIAL_SLOT"
                  else gbuffer.FACE_SET_ATTRIBUTE)
@@ -163,7 +163,7 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
 def apply_irradiance(gathered: list[GatheredPhoto]) -> tuple[list[pipeline.PhotoInput], list]:
     """The pipeline inputs with each photo's irradiance from the references: the
     first photo keeps its own, the others get it times their ratio to it
-    (``core.irradiance.relative_irradiance``). Without references the irradiances
+    (``core.capture.irradiance.relative_irradiance``). Without references the irradiances
     stay as given, and the note says whether that means equal. Returns (inputs,
     notes)."""
     references = [g.reference for g in gathered]

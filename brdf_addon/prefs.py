@@ -61,14 +61,14 @@ def cache_dir() -> pathlib.Path:
         return pathlib.Path(bpy.path.abspath(chosen))
     if PACKAGE.startswith("bl_ext."):
         return pathlib.Path(bpy.utils.extension_path_user(PACKAGE, path="cache", create=True))
-    from ..core import basis
+    from ..core.brdf import basis
 
     return basis.default_cache_dir()
 
 
 def load_basis():
     """The PCA basis the preferences ask for (built-in, or a MERL folder), cached."""
-    from ..core import basis
+    from ..core.brdf import basis
 
     folder = get().database_folder
     if folder:

@@ -245,8 +245,8 @@ class BRDFSettings(PropertyGroup):
 CLASSES = (BRDFPhoto, BRDFRegionResult, BRDFSettings)
 
 def pipeline_settings(settings):
-    """``core.pipeline.PipelineSettings`` from ``scene.brdf`` (degrees -> radians)."""
-    from ..core import observations, pipeline, reliable
+    """``core.method.pipeline.PipelineSettings`` from ``scene.brdf`` (degrees -> radians)."""
+    from ..core.method import observations, pipeline, reliable
 
     return pipeline.PipelineSettings(
         reliable=reliable.ReliableSettings(

@@ -4,8 +4,8 @@
    its camera produced it (``brdf_addon.photo_input``: colour space, saturation,
    size, lens distortion, exposure, irradiance reference), finds its light, and
    renders its G-buffers with Cycles (``brdf_addon.gbuffer``). Returns
-   ``core.pipeline.PhotoInput`` arrays.
-2. ``core.pipeline.run`` (any thread, no bpy): the science.
+   ``core.method.pipeline.PhotoInput`` arrays.
+2. ``core.method.pipeline.run`` (any thread, no bpy): the science.
 3. :func:`write_back` (main thread, bpy): writes ``brdf_<region>.binary``, the
    pictures and ``report.json`` to the output folder, fits and builds one NEW
    material per region (node group "BRDF Reconstruction"), measures its bake
@@ -27,11 +27,12 @@ import time
 import bpy
 import numpy as np
 
-from ..core import merl, pictures, pipeline, selection
+from ..core.brdf import merl
+from ..core.method import pictures, pipeline, selection
 from . import gbuffer, photo_input, prefs, props
 
 # Lights for the bake error, camera space (+z to the viewer): not the fit's own
-# error lights (core.lobe_fit.ERROR_LIGHTS); the fit itself sees no light.
+# error lights (core.bake.fitting.ERROR_LIGHTS); the fit itself sees no light.
 BAKE_LIGHTS = np.array([[0.3, 0.2, 0.93], [-0.5, 0.4, 0.77]])
 
 
@@ -229,10 +230,10 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
 def _bake(scene, r, label, table_path, entry, fit=None) -> dict:
     """Fit the Cycles lobes to the table (unless given), build a NEW material,
     measure its bake error."""
-    from ..core import lobe_fit
+    from ..core.bake import fitting
     from . import material
 
-    fit = fit if fit is not None else lobe_fit.fit(r.table)
+    fit = fit if fit is not None else fitting.fit(r.table)
     provenance = {"table_path": str(table_path),
                   "settings": props.settings_dict(scene.brdf),
                   "region": int(r.region), "kl": float(r.kl[r.winner]), "trial": int(r.winner)}
@@ -257,7 +258,7 @@ class ReconstructRun:
 
     Each :meth:`step` does a bounded piece of work in the calling (main)
     thread: one photo's G-buffers, polling the worker, or writing back. The
-    science (basis load and ``core.pipeline.run``) runs in a worker thread that
+    science (basis load and ``core.method.pipeline.run``) runs in a worker thread that
     never touches bpy. :meth:`cancel` stops at the next step boundary; until
     :meth:`step` reports done nothing has been written, so a cancelled run
     leaves the scene as it was. With ``threaded=False`` everything runs in the
@@ -318,14 +319,14 @@ class ReconstructRun:
             result = pipeline.run(basis, self._inputs, self._settings, progress=progress,
                                   cancelled=self._cancelled)
             if self.bake:  # the lobe fits are numpy: here, not in the main thread
-                from ..core import lobe_fit
+                from ..core.bake import fitting
 
                 for r in result.regions:
                     if self._cancel:
                         raise pipeline.Cancelled("cancelled by the user")
                     if r.status == "ok":
                         self.message = f"region {r.region}: fitting the material"
-                        self._fits[r.region] = (r.winner, lobe_fit.fit(r.table))
+                        self._fits[r.region] = (r.winner, fitting.fit(r.table))
             self._outcome = ("ok", result)
         except pipeline.Cancelled as error:
             self._outcome = ("cancelled", error)

@@ -16,7 +16,7 @@ the centre of that pixel, ``u = (180 itd + ipd + 0.5) / 16200``,
 ``v = (ith + 0.5) / 90``, with "Closest" interpolation, so each lookup reads exactly
 one cell (16200 < 16384, Blender's texture size limit).
 
-Tangent-free angles. :func:`core.merl.half_diff_from_dirs` rotates the light by
+Tangent-free angles. :func:`core.brdf.merl.half_diff_from_dirs` rotates the light by
 ``Rz(-phi_h)`` then ``Ry(-theta_h)``; the result ``d`` is the light expressed in
 the frame ``(e_theta, e_phi, h)`` with ``e_phi = (z x h) / |z x h|`` and
 ``e_theta = e_phi x h`` (z = the normal). Hence, in world space and without any
@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core import merl
+from ..core.brdf import merl
 
 _NTH, _NTD, _NPD = merl.SHAPE
 WIDTH = _NTD * _NPD  # 16200 columns: 180 itd + ipd

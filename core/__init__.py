@@ -1,2 +1,2 @@
-"""The science: pure numpy/scipy, never imports bpy (MERL tables, analytic models, the
-PCA basis, optimal sampling, reconstruction, shading and metrics)."""
+"""The science, pure numpy/scipy, never bpy: brdf (tables and basis), capture (photos and
+cameras), method (Ono et al. 2017, photo to table) and bake (table to Cycles lobes)."""

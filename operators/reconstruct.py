@@ -9,14 +9,8 @@ was. Background mode (batch, tests): the same steps, synchronously.
 
 import bpy
 
-from ..core import pipeline
-
-
-def _runner():
-    # brdf_addon imports this package to register it: import its runner late
-    from ..brdf_addon import runner
-
-    return runner
+from ..brdf_addon import runner
+from ..core.method import pipeline
 
 
 def _ready(context) -> bool:
@@ -41,7 +35,7 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
     def execute(self, context):
         try:
             echo = _echo if bpy.app.background else None
-            report = _runner().ReconstructRun(context.scene, threaded=False,
+            report = runner.ReconstructRun(context.scene, threaded=False,
                                               on_progress=echo).run()
         except (ValueError, OSError, pipeline.Cancelled) as error:
             self.report({"ERROR"}, _sentence(error))
@@ -53,7 +47,7 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
         if bpy.app.background or context.window is None:
             return self.execute(context)
         try:
-            self._run = _runner().ReconstructRun(context.scene, threaded=True)
+            self._run = runner.ReconstructRun(context.scene, threaded=True)
         except ValueError as error:
             self.report({"ERROR"}, _sentence(error))
             return {"CANCELLED"}
@@ -107,7 +101,7 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
         context.scene.brdf.progress = 0.0
 
     def _report_done(self, report):
-        for line in _runner().capture_notes(report.get("capture", {})):
+        for line in runner.capture_notes(report.get("capture", {})):
             self.report({"INFO"}, line)
             if bpy.app.background:
                 print(f"note: {line}", flush=True)

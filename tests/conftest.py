@@ -15,14 +15,14 @@ os.environ.setdefault("BRDF_RECONSTRUCT_CACHE", str(CACHE))
 @pytest.fixture(scope="session")
 def default_basis():
     """The built-in basis (built on first use, about two minutes; cached in .cache/)."""
-    from brdf_reconstruct.core import basis
+    from brdf_reconstruct.core.brdf import basis
 
     return basis.load_default(cache_dir=CACHE)
 
 
 @pytest.fixture(scope="session")
 def heldout_tables():
-    from brdf_reconstruct.core import database
+    from brdf_reconstruct.core.brdf import database
 
     return {s["name"]: database.make_table(s) for s in database.heldout_specs()}
 

@@ -11,7 +11,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-import blender_scene as BS  # noqa: E402
+from testkit import blender_scene as BS  # noqa: E402
 
 GOOD = f"""
 blend = "scene.blend"

@@ -10,10 +10,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
-import capture  # noqa: E402
-
-from brdf_reconstruct.operators import import_colmap  # noqa: E402
+from brdf_reconstruct.brdf_addon import colmap_import  # noqa: E402
+from testkit import capture  # noqa: E402
 
 BUNNY = capture.DATA / "stanford-bunny.obj"
 
@@ -57,7 +55,7 @@ def test_normal_error_is_like_a_photogrammetry_mesh(bunny, tmp_path):
     truth, scan = bunny
     poses = capture.camera_ring(3)
     folder = capture.write_colmap(tmp_path / "sparse", poses, 96, 72, 120.0, _co(truth)[::50])
-    cameras = import_colmap.import_cameras(bpy.context.scene, folder)
+    cameras = colmap_import.import_cameras(bpy.context.scene, folder)
     angles = np.degrees(capture.normal_angle_error(truth, scan, cameras[0], (96, 72)))
     # blunted, not destroyed: most normals within a few degrees, some far off
     median, p90 = np.median(angles), np.percentile(angles, 90)
@@ -69,7 +67,7 @@ def test_colmap_model_of_the_ring_imports_with_its_poses(bunny, tmp_path):
     truth, _ = bunny
     poses = capture.camera_ring(7)
     folder = capture.write_colmap(tmp_path / "sparse", poses, 64, 48, 80.0, _co(truth)[::100])
-    cameras = import_colmap.import_cameras(bpy.context.scene, folder)
+    cameras = colmap_import.import_cameras(bpy.context.scene, folder)
     assert [c["brdf_image_name"] for c in cameras] == [f"view{i:03d}.png" for i in range(7)]
     for cam, (R, t) in zip(cameras, poses, strict=True):
         np.testing.assert_allclose(np.array(cam.matrix_world.translation), -R.T @ t, atol=1e-5)
@@ -97,7 +95,7 @@ def test_capture_then_batch_end_to_end(tmp_path):
     import json
     import subprocess
 
-    from brdf_reconstruct.core import database, merl, metrics, render
+    from brdf_reconstruct.core.brdf import database, merl, metrics, render
 
     specs = {s["name"]: s for s in database.heldout_specs()}
     truth = database.make_table(specs["heldout_gold_medium"])

@@ -13,12 +13,15 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-import blender_scene as BS  # noqa: E402
 from image_files import write_image  # noqa: E402
 
-from brdf_reconstruct.brdf_addon import runner  # noqa: E402
-from brdf_reconstruct.core import photo_io, sun  # noqa: E402
-from brdf_reconstruct.operators import light, photos  # noqa: E402
+from brdf_reconstruct.brdf_addon import (  # noqa: E402
+    light_sources,
+    photo_list,
+    runner,  # noqa: E402
+)
+from brdf_reconstruct.core.capture import photo_io, sun  # noqa: E402
+from testkit import blender_scene as BS  # noqa: E402
 
 
 @pytest.fixture
@@ -216,12 +219,12 @@ def test_sun_from_exif_time_and_gps_place(tiny):
     p = _entry(tiny, path)
     p.light_source, p.time_from_exif, p.place_from_exif = "SUN_POSITION", True, True
     details = {}
-    found = light.photo_light(tiny["scene"], p, details)
+    found = light_sources.photo_light(tiny["scene"], p, details)
     np.testing.assert_allclose(found, sun.sun_direction(when, lat, lon), atol=1e-9)
     assert any("EXIF" in note for note in details["notes"])
     # a scene whose sky is +X: the sun's elevation is measured from that up
     tiny["scene"].brdf.scene_up = (1.0, 0.0, 0.0)
-    found = light.photo_light(tiny["scene"], p)
+    found = light_sources.photo_light(tiny["scene"], p)
     elevation, _ = sun.solar_position(when, lat, lon)
     assert math.asin(found[0]) == pytest.approx(float(elevation), abs=1e-9)
 
@@ -238,7 +241,7 @@ def test_up_from_cameras_of_a_tilted_ring(tiny):
         cam.rotation_quaternion = (-cam.location).to_track_quat("-Z", "Y")
         scene.collection.objects.link(cam)
     bpy.data.objects.remove(scene.objects["view0"])
-    up, _ = light.up_from_cameras(scene)
+    up, _ = light_sources.up_from_cameras(scene)
     assert math.degrees(math.acos(np.clip(up @ [0.0, 1.0, 0.0], -1, 1))) < 0.5
 
 
@@ -297,7 +300,7 @@ def test_cameras_from_another_importer_use_the_scene_render_size(tiny):
     for key in ("brdf_image_name", "brdf_width", "brdf_height"):
         del camera[key]
     camera.name = "view0.jpg"
-    added, unmatched = photos.add_photos(tiny["scene"], [str(tiny["photo"])])
+    added, unmatched = photo_list.add_photos(tiny["scene"], [str(tiny["photo"])])
     assert unmatched == [] and added[0].camera == camera
     inputs, capture = runner.gather_capture(tiny["scene"])
     assert inputs[0].photo.shape == (48, 48, 3) and "scaled" not in capture["photos"][0]
@@ -314,7 +317,7 @@ def test_a_new_photo_takes_the_last_ones_light_with_its_date_and_place(tiny):
     other = tiny["dir"] / "view0_b.exr"
     other.write_bytes(tiny["photo"].read_bytes())
     tiny["camera"]["brdf_image_name"] = "view0_b.jpg"
-    (added,), unmatched = photos.add_photos(tiny["scene"], [str(other)])
+    (added,), unmatched = photo_list.add_photos(tiny["scene"], [str(other)])
     assert unmatched == []
     assert (added.light_source, added.when, added.latitude, added.place_from_exif,
             added.color_space) == ("SUN_POSITION", "2026-03-01 10:00:00", 35.0, True, "SRGB")

@@ -18,27 +18,30 @@ bpy = pytest.importorskip("bpy")
 from bpy_extras.object_utils import world_to_camera_view  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
-from brdf_reconstruct.core import colmap as cm  # noqa: E402
-from brdf_reconstruct.operators import import_colmap as ic  # noqa: E402
+from brdf_reconstruct.brdf_addon import colmap_import  # noqa: E402
+from brdf_reconstruct.core.capture import cameras as camconv  # noqa: E402
+from brdf_reconstruct.operators import import_colmap as import_colmap_op  # noqa: E402
+from testkit import synthetic  # noqa: E402
 
 pycolmap = pytest.importorskip("pycolmap")
 
-OP = ic.BRDF_OT_import_colmap
+OP = import_colmap_op.BRDF_OT_import_colmap
 
 
 def _views():
     """Cameras around the origin: off-centre principal points, fx != fy both ways,
     one portrait image, a square image seen from above, a zero-distortion radial model."""
     return [
-        ("a.jpg", "PINHOLE", [800, 860, 300, 260], 640, 480, *cm.look_at([4, 0.5, 1], [0, 0, 0])),
+        ("a.jpg", "PINHOLE", [800, 860, 300, 260], 640, 480,
+         *camconv.look_at([4, 0.5, 1], [0, 0, 0])),
         ("b_portrait.jpg", "PINHOLE", [700, 650, 250, 300], 480, 640,
-         *cm.look_at([0.3, 4, 1.5], [0, 0, 0.1])),
+         *camconv.look_at([0.3, 4, 1.5], [0, 0, 0.1])),
         ("c.jpg", "SIMPLE_PINHOLE", [900, 400, 300], 800, 600,
-         *cm.look_at([-3, -3, 0.5], [0.1, 0, 0])),
+         *camconv.look_at([-3, -3, 0.5], [0.1, 0, 0])),
         ("d.jpg", "SIMPLE_RADIAL", [1000, 530, 370, 0.0], 1024, 768,
-         *cm.look_at([-4, 1, -1], [0, 0, 0])),
+         *camconv.look_at([-4, 1, -1], [0, 0, 0])),
         ("sub/e.jpg", "PINHOLE", [600, 600, 200, 320], 512, 512,
-         *cm.look_at([0.5, -0.5, 4.5], [0, 0, 0])),
+         *camconv.look_at([0.5, -0.5, 4.5], [0, 0, 0])),
     ]  # fmt: skip
 
 
@@ -47,7 +50,7 @@ def models(tmp_path_factory):
     rng = np.random.default_rng(0)
     xyz = rng.uniform(-1, 1, (200, 3))
     rgb = rng.integers(0, 256, (200, 3), dtype=np.uint8)
-    rec = cm.synthetic_reconstruction(_views(), xyz, rgb)
+    rec = synthetic.synthetic_reconstruction(_views(), xyz, rgb)
     root = tmp_path_factory.mktemp("colmap")
     (root / "bin").mkdir()
     (root / "txt").mkdir()
@@ -72,20 +75,20 @@ def operator_registered():
         bpy.ops.wm.read_homefile(use_empty=True)
 
 
-def _imported_cameras(collection_name=ic.COLLECTION_NAME):
+def _imported_cameras(collection_name=colmap_import.COLLECTION_NAME):
     return [o for o in bpy.data.collections[collection_name].objects if o.type == "CAMERA"]
 
 
 def _reprojection_errors(model_dir):
     """Pixel distances between Blender's projection and COLMAP's observations, per camera."""
-    rec = pycolmap.Reconstruction(str(model_dir))  # read independently of core.colmap
+    rec = pycolmap.Reconstruction(str(model_dir))  # read independently of core.capture.colmap
     by_name = {rec.image(i).name: rec.image(i) for i in rec.reg_image_ids()}
     scene = bpy.context.scene
     errors = {}
     for obj in _imported_cameras():
         image = by_name[obj["brdf_image_name"]]
         camera = rec.camera(image.camera_id)
-        ic.set_render_to_camera(scene, obj)
+        colmap_import.set_render_to_camera(scene, obj)
         assert (scene.render.resolution_x, scene.render.resolution_y) == (
             camera.width,
             camera.height,
@@ -184,7 +187,7 @@ def test_importing_twice_leaves_the_first_import_alone(models):
     bpy.ops.brdf.import_colmap(directory=str(models["txt"]), point_cloud=True)
     assert _snapshot(first + [scan]) == before
     assert (bpy.context.scene.render.resolution_x, bpy.context.scene.camera.name) == render_before
-    second = _imported_cameras(ic.COLLECTION_NAME + ".001")
+    second = _imported_cameras(colmap_import.COLLECTION_NAME + ".001")
     assert not set(first) & set(second)
     assert sorted(o["brdf_image_name"] for o in second) == sorted(v[0] for v in _views())
     assert all(o.name.endswith(".001") for o in second)  # Blender's suffix; the property is exact
@@ -192,7 +195,7 @@ def test_importing_twice_leaves_the_first_import_alone(models):
 
 def test_point_cloud(models):
     bpy.ops.brdf.import_colmap(directory=str(models["bin"]), point_cloud=True)
-    points = bpy.data.collections[ic.COLLECTION_NAME].objects[ic.POINTS_NAME]
+    points = bpy.data.collections[colmap_import.COLLECTION_NAME].objects[colmap_import.POINTS_NAME]
     rec = pycolmap.Reconstruction(str(models["bin"]))
     ids = sorted(rec.point3D_ids())
     xyz = np.array([rec.point3D(i).xyz for i in ids])
@@ -206,21 +209,22 @@ def test_point_cloud(models):
 
 def test_no_point_cloud_by_default(models):
     bpy.ops.brdf.import_colmap(directory=str(models["bin"]))
-    assert all(o.type == "CAMERA" for o in bpy.data.collections[ic.COLLECTION_NAME].objects)
+    collection = bpy.data.collections[colmap_import.COLLECTION_NAME]
+    assert all(o.type == "CAMERA" for o in collection.objects)
 
 
 def test_plain_function_for_the_batch_runner(models):
-    cams = ic.import_cameras(bpy.context.scene, models["txt"])
+    cams = colmap_import.import_cameras(bpy.context.scene, models["txt"])
     assert [o["brdf_image_name"] for o in cams] == sorted(v[0] for v in _views())
     assert all(o.name in bpy.context.scene.objects for o in cams)
-    more = ic.import_cameras(bpy.context, models["bin"])
+    more = colmap_import.import_cameras(bpy.context, models["bin"])
     assert len(more) == len(cams)
 
 
 def test_distortion_is_flagged(tmp_path):
     view = ("w.jpg", "OPENCV", [700, 700, 250, 200, 0.05, 0, 0, 0], 500, 400)
-    cm.synthetic_reconstruction(
-        [(*view, *cm.look_at([3, 0, 0], [0, 0, 0]))], np.zeros((0, 3))
+    synthetic.synthetic_reconstruction(
+        [(*view, *camconv.look_at([3, 0, 0], [0, 0, 0]))], np.zeros((0, 3))
     ).write(str(tmp_path))
     assert bpy.ops.brdf.import_colmap(directory=str(tmp_path)) == {"FINISHED"}
     (cam,) = _imported_cameras()
@@ -254,7 +258,7 @@ def test_folder_without_model_cancels(tmp_path):
 def test_set_render_to_camera_needs_an_imported_camera():
     plain = bpy.data.objects.new("Plain", bpy.data.cameras.new("Plain"))
     with pytest.raises(ValueError, match="brdf_width"):
-        ic.set_render_to_camera(bpy.context.scene, plain)
+        colmap_import.set_render_to_camera(bpy.context.scene, plain)
 
 
 def test_operator_declares_undo_and_a_folder_browser():
@@ -271,10 +275,11 @@ def test_operator_declares_undo_and_a_folder_browser():
 def test_distorted_camera_carries_its_params_and_warns_of_undistortion(tmp_path):
     params = [700, 710, 250, 200, 0.05, -0.01, 0.001, 0.002]
     views = [
-        ("d.jpg", "OPENCV", params, 500, 400, *cm.look_at([3, 0, 0], [0, 0, 0])),
-        ("p.jpg", "PINHOLE", [600, 600, 250, 200], 500, 400, *cm.look_at([0, 3, 0], [0, 0, 0])),
+        ("d.jpg", "OPENCV", params, 500, 400, *camconv.look_at([3, 0, 0], [0, 0, 0])),
+        ("p.jpg", "PINHOLE", [600, 600, 250, 200], 500, 400,
+         *camconv.look_at([0, 3, 0], [0, 0, 0])),
     ]
-    cm.synthetic_reconstruction(views, np.zeros((0, 3))).write(str(tmp_path))
+    synthetic.synthetic_reconstruction(views, np.zeros((0, 3))).write(str(tmp_path))
     fake = _FakeOperator(directory=str(tmp_path), point_cloud=False, reports=[])
     assert OP.execute(fake, bpy.context) == {"FINISHED"}
     ((kind, message),) = fake.reports
@@ -295,10 +300,10 @@ def _shared_camera_model(path):
         2: ("OPENCV", [600.0, 610.0, 245.0, 210.0, -0.1, 0.02, 0.001, -0.002], 500, 400),
     }
     images = [
-        ("p1.jpg", 1, cm.look_at([4, 0.5, 1], [0, 0, 0])),
-        ("o1.jpg", 2, cm.look_at([0.3, 4, 1.5], [0, 0, 0.1])),
-        ("p2.jpg", 1, cm.look_at([-3, -3, 0.5], [0.1, 0, 0])),
-        ("o2.jpg", 2, cm.look_at([-4, 1, -1], [0, 0, 0])),
+        ("p1.jpg", 1, camconv.look_at([4, 0.5, 1], [0, 0, 0])),
+        ("o1.jpg", 2, camconv.look_at([0.3, 4, 1.5], [0, 0, 0.1])),
+        ("p2.jpg", 1, camconv.look_at([-3, -3, 0.5], [0.1, 0, 0])),
+        ("o2.jpg", 2, camconv.look_at([-4, 1, -1], [0, 0, 0])),
     ]
     xyz = np.random.default_rng(5).uniform(-1, 1, (150, 3))
     rec = pycolmap.Reconstruction()
@@ -322,7 +327,7 @@ def _shared_camera_model(path):
 def _blender_pixels(obj, xyz):
     """(N, 2) pixels of world points through a Blender camera (world_to_camera_view)."""
     scene = bpy.context.scene
-    ic.set_render_to_camera(scene, obj)
+    colmap_import.set_render_to_camera(scene, obj)
     w, h = scene.render.resolution_x, scene.render.resolution_y
     out = []
     for p in xyz:
@@ -336,7 +341,8 @@ def test_several_shared_cameras_give_each_image_its_own_intrinsics_and_size(tmp_
     xyz = _shared_camera_model(tmp_path)
     rec = pycolmap.Reconstruction(str(tmp_path))
     assert len(rec.cameras) == 2 and len(rec.images) == 4
-    cams = {o["brdf_image_name"]: o for o in ic.import_cameras(bpy.context.scene, tmp_path)}
+    imported = colmap_import.import_cameras(bpy.context.scene, tmp_path)
+    cams = {o["brdf_image_name"]: o for o in imported}
     assert sorted(cams) == ["o1.jpg", "o2.jpg", "p1.jpg", "p2.jpg"]
     for image in (rec.image(i) for i in rec.reg_image_ids()):
         obj, camera = cams[image.name], rec.camera(image.camera_id)
@@ -370,26 +376,28 @@ def test_only_registered_images_become_cameras_even_without_points(tmp_path):
     for name in names:
         (photos / name).write_bytes(b"")
     views = [
-        ("a.jpg", "PINHOLE", [500, 500, 320, 240], 640, 480, *cm.look_at([4, 0, 1], [0, 0, 0])),
-        ("b.jpg", "PINHOLE", [500, 500, 320, 240], 640, 480, *cm.look_at([0, 4, 1], [0, 0, 0])),
+        ("a.jpg", "PINHOLE", [500, 500, 320, 240], 640, 480,
+         *camconv.look_at([4, 0, 1], [0, 0, 0])),
+        ("b.jpg", "PINHOLE", [500, 500, 320, 240], 640, 480,
+         *camconv.look_at([0, 4, 1], [0, 0, 0])),
         # looks away from every point: registered, but with no observation
         ("c.jpg", "PINHOLE", [500, 500, 320, 240], 640, 480,
-         *cm.look_at([5, 5, 5], [10, 11, 12])),
+         *camconv.look_at([5, 5, 5], [10, 11, 12])),
     ]  # fmt: skip
     xyz = np.random.default_rng(2).uniform(-1, 1, (60, 3))
-    rec = cm.synthetic_reconstruction(views, xyz)
+    rec = synthetic.synthetic_reconstruction(views, xyz)
     rec.deregister_frame(rec.image(2).frame_id)  # b.jpg failed to register in SfM
     model = tmp_path / "sparse"
     model.mkdir()
     rec.write_text(str(model))
     assert "b.jpg" not in (model / "images.txt").read_text()
-    cams = ic.import_cameras(bpy.context.scene, model)
+    cams = colmap_import.import_cameras(bpy.context.scene, model)
     assert [o["brdf_image_name"] for o in cams] == ["a.jpg", "c.jpg"]  # of 5 photos
     c = cams[1]
     assert pycolmap.Reconstruction(str(model)).image(3).num_points3D == 0
     R, t = views[2][5], views[2][6]
-    np.testing.assert_allclose(np.array(c.matrix_world), cm.camera_to_world(R, t), atol=1e-6)
-    ahead = cm.camera_centre(R, t) + np.random.default_rng(3).uniform(4, 6, (20, 3))
+    np.testing.assert_allclose(np.array(c.matrix_world), camconv.camera_to_world(R, t), atol=1e-6)
+    ahead = camconv.camera_centre(R, t) + np.random.default_rng(3).uniform(4, 6, (20, 3))
     px = _blender_pixels(c, ahead)
     camera = pycolmap.Camera.create_from_model_name(1, "PINHOLE", 1.0, 640, 480)
     camera.params = [500, 500, 320, 240]
@@ -472,7 +480,7 @@ def test_mesh_in_colmap_world_frame_projects_like_pycolmap(models, tmp_path, suf
     v, f = _ellipsoid()
     path = tmp_path / f"scan{suffix}"
     _write_mesh(path, v, f)
-    ic.import_cameras(bpy.context.scene, models["bin"])
+    colmap_import.import_cameras(bpy.context.scene, models["bin"])
     world = _import_mesh(path, **IDENTITY_AXES[suffix][1])
     which, dist = _matched(world, v)
     assert dist.max() < 1e-6 and set(which) == set(range(len(v)))  # coordinates unchanged
@@ -493,7 +501,7 @@ def test_obj_default_axes_would_move_the_mesh_off_the_cameras(models, tmp_path):
     v, f = _ellipsoid()
     path = tmp_path / "scan.obj"
     _write_mesh(path, v, f)
-    ic.import_cameras(bpy.context.scene, models["bin"])
+    colmap_import.import_cameras(bpy.context.scene, models["bin"])
     world = _import_mesh(path)  # the OBJ importer's defaults: forward -Z, up Y
     # file (x, y, z) -> Blender (x, -z, y): a quarter turn about x
     which, dist = _matched(world, v @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]]))

@@ -8,12 +8,15 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-import blender_scene as BS  # noqa: E402
-
 import brdf_reconstruct  # noqa: E402
-from brdf_reconstruct.brdf_addon import cycles_select, runner  # noqa: E402
-from brdf_reconstruct.core import database, merl, pipeline, selection  # noqa: E402
-from brdf_reconstruct.operators import photos  # noqa: E402
+from brdf_reconstruct.brdf_addon import (  # noqa: E402
+    cycles_select,
+    photo_list,  # noqa: E402
+    runner,
+)
+from brdf_reconstruct.core.brdf import database, merl  # noqa: E402
+from brdf_reconstruct.core.method import pipeline, selection  # noqa: E402
+from testkit import blender_scene as BS  # noqa: E402
 
 
 def _lambert(albedo):
@@ -27,7 +30,7 @@ def tiny(tmp_path):
     built = BS.build(tmp_path)
     brdf_reconstruct.register()
     BS.settings_for_tiny_runs(built, tmp_path / "out")
-    (p,), _ = photos.add_photos(built["scene"], [str(built["photo"])])
+    (p,), _ = photo_list.add_photos(built["scene"], [str(built["photo"])])
     p.irradiance = (BS.lit_irradiance(),) * 3
     try:
         yield built

@@ -15,18 +15,19 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from brdf_reconstruct.brdf_addon import material  # noqa: E402
-from brdf_reconstruct.core import lobe_fit, metrics, render  # noqa: E402
+from brdf_reconstruct.core.bake import fitting, lobes  # noqa: E402
+from brdf_reconstruct.core.brdf import metrics, render  # noqa: E402
 
 RESOLUTION = 64
 SAMPLES = 16
 # Camera-space lights (+z to the viewer): near the view, the reference light,
 # and a grazing one (the rim of the sphere and the terminator).
 LIGHTS = np.array([[0.3, 0.2, 0.9], render.REFERENCE_LIGHT, [-0.9, 0.1, 0.3]])
-# Lights for the bake check, none of them lobe_fit.ERROR_LIGHTS.
+# Lights for the bake check, none of them fitting.ERROR_LIGHTS.
 BAKE_LIGHTS = np.array([[0.6, 0.5, 0.62], [-0.3, -0.7, 0.65]])
 
 
-_params = lobe_fit.LobeParams.build
+_params = lobes.LobeParams.build
 
 
 # One material per closure, so a mismatch names its closure, then all together.
@@ -66,7 +67,7 @@ def empty_file():
 def heldout_fit(heldout_tables):
     # Beckmann coat over a diffuse base: every closure kind gets used.
     table = heldout_tables["heldout_glossy_plastic"]
-    return table, lobe_fit.fit(table)
+    return table, fitting.fit(table)
 
 
 @pytest.mark.parametrize("name", sorted(MODELS))
@@ -122,7 +123,7 @@ def test_build_material(heldout_fit):
     # provenance and the fit as custom properties
     assert mat["brdf_table_path"] == "//brdf_region_1.binary"
     assert json.loads(mat["brdf_settings"]) == {"samples": 20, "seed": 0}
-    stored = lobe_fit.LobeParams.from_dict(json.loads(mat["brdf_fit"]))
+    stored = lobes.LobeParams.from_dict(json.loads(mat["brdf_fit"]))
     assert stored.to_dict() == fit.params.to_dict()
     assert json.loads(mat["brdf_errors"])["log_rmse"] == fit.errors["log_rmse"]
     assert "time_fit_s" in json.loads(mat["brdf_fit_info"])
@@ -159,5 +160,5 @@ def test_temporary_scene_is_removed_after_an_error(monkeypatch):
 
     monkeypatch.setattr(material._TemporaryScene, "render", fail)
     with pytest.raises(RuntimeError, match="render failed"):
-        material.bake_error(mat, lobe_fit.tabulate(MODELS["lambert"]), BAKE_LIGHTS[:1])
+        material.bake_error(mat, lobes.tabulate(MODELS["lambert"]), BAKE_LIGHTS[:1])
     assert _snapshot() == before

@@ -9,7 +9,7 @@ denoising, a 0.75 degree Sun, linear EXR). The wall behind it takes the
 sphere's shadow, an ellipse of about the sphere's size: a decoy for the circle
 search. The circle is found by `light_probe.locate_sphere` (or given by hand and
 snapped by `refine_sphere`) and the light by `light_probe.light_from_sphere`,
-with the intrinsics of `operators.light.camera_intrinsics` and the camera's
+with the intrinsics of `brdf_addon.light_sources.camera_intrinsics` and the camera's
 rotation, as the product does. The truth is the Sun object's direction.
 
 The resolution is what keeps every light under 1 degree with a margin: over 20
@@ -23,149 +23,25 @@ Each photo renders in about 1.3 s; the module takes about 11 s.
 from __future__ import annotations
 
 import math
-import pathlib
 
 import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
 
-import blender_scene as BS  # noqa: E402
-from mathutils import Vector  # noqa: E402
 
-from brdf_reconstruct.core import light_probe as lp  # noqa: E402
-from brdf_reconstruct.core import photo_io  # noqa: E402
-from brdf_reconstruct.operators import light  # noqa: E402
+from brdf_reconstruct.core.capture import light_probe as lp  # noqa: E402
+from testkit import probe_scene as PS  # noqa: E402
 
-SIZE = (320, 240)
-SAMPLES = 32
-SUN_ANGLE_DEG = 0.75
-CAMERA_AT = (0.6, -3.6, 0.5)
-LOOK_AT = (-0.35, 0.0, 0.25)  # so the sphere (at the origin) is off the image centre
 TOL_DEG = 1.0
 
-
-def _unit(v):
-    v = np.asarray(v, dtype=np.float64)
-    return v / np.linalg.norm(v)
-
-
-def _angle_deg(a, b):
-    return math.degrees(math.acos(np.clip(_unit(a) @ _unit(b), -1.0, 1.0)))
-
-
-def light_from_view(angle_deg, roll_deg, camera_at=CAMERA_AT):
-    """(3,) world direction towards a light `angle_deg` away from the direction from
-    the sphere (origin) to the camera, turned by `roll_deg` about it (0: to the right
-    of the image, 90: up)."""
-    v = _unit(camera_at)
-    x = _unit(np.cross([0.0, 0.0, 1.0], v))
-    y = np.cross(v, x)
-    t, p = math.radians(angle_deg), math.radians(roll_deg)
-    return _unit(math.cos(t) * v + math.sin(t) * (math.cos(p) * x + math.sin(p) * y))
-
-
-def _material(kind):
-    mat = bpy.data.materials.new(kind)
-    tree = mat.node_tree
-    tree.nodes.clear()
-    out = tree.nodes.new("ShaderNodeOutputMaterial")
-    if kind == "chrome":
-        bsdf = tree.nodes.new("ShaderNodeBsdfGlossy")
-        bsdf.inputs["Roughness"].default_value = 0.03
-    elif kind == "black":  # black base (albedo 0.01) under a clear coat, Fresnel and all
-        bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
-        bsdf.inputs["Base Color"].default_value = (0.01, 0.01, 0.01, 1.0)
-        bsdf.inputs["Roughness"].default_value = 0.4
-        bsdf.inputs["Coat Weight"].default_value = 1.0
-        bsdf.inputs["Coat Roughness"].default_value = 0.03
-    elif kind == "wall":
-        bsdf = tree.nodes.new("ShaderNodeBsdfDiffuse")
-        bsdf.inputs["Color"].default_value = (0.5, 0.5, 0.5, 1.0)
-    else:
-        raise ValueError(f"unknown material {kind!r}")
-    tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
-    return mat
-
-
-def render_probe(path: pathlib.Path, kind: str | None, light_dir, *, size=SIZE,
-                 samples=SAMPLES, wall=True, sun_angle_deg=SUN_ANGLE_DEG) -> dict:
-    """Reset to an empty scene, build the probe set-up and render it to `path` (EXR).
-
-    kind: "chrome" (Glossy BSDF, roughness 0.03), "black" (Principled, clear coat
-    0.03) or None (no sphere: the clean plate). light_dir: (3,) world direction
-    towards the Sun. Returns the photo
-    ((H, W, 3) linear), the camera (`PerspectiveCamera`), its camera-to-world
-    rotation (3, 3), the true light and the true circle of the sphere.
-    """
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    if kind is not None:
-        bpy.ops.mesh.primitive_uv_sphere_add(segments=128, ring_count=64, radius=1.0)
-        bpy.ops.object.shade_smooth()
-        bpy.context.active_object.data.materials.append(_material(kind))
-    if wall:
-        bpy.ops.mesh.primitive_plane_add(size=30.0, location=(0.0, 4.0, 0.0),
-                                         rotation=(math.pi / 2, 0.0, 0.0))
-        bpy.context.active_object.data.materials.append(_material("wall"))
-    world = bpy.data.worlds.new("grey")  # Blender 5 worlds come with their node tree
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.15, 0.15, 0.15, 1)
-    scene.world = world
-    cam_data = bpy.data.cameras.new("probe camera")
-    cam_data.lens = 35.0
-    cam = bpy.data.objects.new("probe camera", cam_data)
-    scene.collection.objects.link(cam)
-    cam.location = CAMERA_AT
-    cam.rotation_mode = "QUATERNION"
-    cam.rotation_quaternion = (Vector(LOOK_AT) - cam.location).to_track_quat("-Z", "Y")
-    scene.camera = cam
-    sun_data = bpy.data.lights.new("Sun", "SUN")
-    sun_data.energy = 3.0
-    sun_data.angle = math.radians(sun_angle_deg)
-    sun = bpy.data.objects.new("Sun", sun_data)
-    scene.collection.objects.link(sun)
-    sun.rotation_mode = "QUATERNION"  # a Sun shines down its -Z: +Z points to it
-    sun.rotation_quaternion = Vector((0, 0, 1)).rotation_difference(Vector(tuple(light_dir)))
-
-    # two bounces: the mirror shows the lit wall
-    BS.render_photo(scene, path, size, samples=samples, bounces=2, transparent=False)
-
-    image = photo_io.read_photo(str(path))
-    h, w = image.shape[:2]
-    camera = light.camera_intrinsics(scene, cam, w, h)
-    rotation = np.array(cam.matrix_world.to_3x3().normalized())
-    centre = rotation.T @ -np.array(cam.matrix_world.translation)  # the sphere, camera space
-    return {"image": image, "camera": camera, "rotation": rotation,
-            "light": _unit(sun.matrix_world.to_3x3().col[2]),
-            "circle": true_circle(centre, 1.0, camera)}
-
-
-def true_circle(centre, radius, camera):
-    """The image circle through the two ends of the major axis of a sphere's outline
-    (the circle `light_from_highlight` expects): the two tangent rays in the plane
-    of the optical axis and the sphere's centre (camera space, looking down -z)."""
-    c = np.asarray(centre, dtype=np.float64)
-    dist = np.linalg.norm(c)
-    alpha = math.asin(radius / dist)
-    axis = c / dist
-    k = _unit(np.cross(axis, [0.0, 0.0, -1.0]))  # the sphere is off the optical axis
-    ends = []
-    for a in (alpha, -alpha):
-        p = axis * math.cos(a) + np.cross(k, axis) * math.sin(a)  # axis turned by a about k
-        ends.append([camera.principal_px[0] + camera.focal_px * p[0] / -p[2],
-                     camera.principal_px[1] - camera.focal_px * p[1] / -p[2]])
-    ends = np.array(ends)
-    return tuple(ends.mean(axis=0)), float(np.linalg.norm(ends[0] - ends[1]) / 2.0)
-
-
-# --- the tests ------------------------------------------------------------------
 
 LIGHTS = {  # (angle from the sphere-to-camera direction, roll), degrees
     "near_axis": (15.0, 60.0),
     "oblique": (45.0, 200.0),
     "far_68deg": (68.0, 330.0),
 }
-KINDS = ("chrome", "black")
+KINDS = PS.KINDS
 
 
 @pytest.fixture(scope="module")
@@ -178,8 +54,8 @@ def photos(tmp_path_factory):
         def __getitem__(self, key):
             if key not in cache:
                 kind, name = key
-                cache[key] = render_probe(folder / f"{kind}_{name}.exr", kind,
-                                          light_from_view(*LIGHTS[name]))
+                cache[key] = PS.render_probe(folder / f"{kind}_{name}.exr", kind,
+                                          PS.light_from_view(*LIGHTS[name]))
             return cache[key]
 
     return Photos()
@@ -190,7 +66,7 @@ def _probe(photo, image=None, circle=None, **kwargs):
     center, radius = circle or lp.locate_sphere(photo["image"], camera=photo["camera"])
     res = lp.light_from_sphere(photo["image"] if image is None else image, center, radius,
                                photo["camera"], photo["rotation"], **kwargs)
-    return _angle_deg(res.direction_world, photo["light"]), math.degrees(res.uncertainty_rad)
+    return PS.angle_deg(res.direction_world, photo["light"]), math.degrees(res.uncertainty_rad)
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -262,7 +138,7 @@ def test_user_circle_a_little_off_is_snapped(photos, kind):
 def test_clean_plate_and_no_sphere(photos, tmp_path):
     """The same view without the sphere: no sphere-like circle in it (one clear error),
     and as a clean plate (`background`) it finds the same circle."""
-    plate = render_probe(tmp_path / "plate.exr", None, light_from_view(*LIGHTS["far_68deg"]))
+    plate = PS.render_probe(tmp_path / "plate.exr", None, PS.light_from_view(*LIGHTS["far_68deg"]))
     with pytest.raises(ValueError, match="no sphere-like circle"):
         lp.locate_sphere(plate["image"], camera=plate["camera"])
     photo = photos[("black", "far_68deg")]

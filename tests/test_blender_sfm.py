@@ -2,9 +2,7 @@
 bunny under ambient light, pycolmap SfM on them alone, and the recovered cameras
 against the true ones after a similarity alignment."""
 
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,9 +10,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 pycolmap = pytest.importorskip("pycolmap")
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
-import capture  # noqa: E402
-import sfm  # noqa: E402
+from testkit import capture, sfm  # noqa: E402
 
 BUNNY = capture.DATA / "stanford-bunny.obj"
 needs_bunny = pytest.mark.skipif(not BUNNY.is_file(), reason=f"{BUNNY} not found")

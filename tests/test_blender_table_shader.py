@@ -14,7 +14,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from brdf_reconstruct.brdf_addon import material, table_shader  # noqa: E402
-from brdf_reconstruct.core import database, merl, metrics, render  # noqa: E402
+from brdf_reconstruct.core.brdf import database, merl, metrics, render  # noqa: E402
 
 RESOLUTION = 64
 SAMPLES = 16

@@ -13,11 +13,15 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-import blender_scene as BS  # noqa: E402
-
-from brdf_reconstruct.brdf_addon import runner  # noqa: E402
-from brdf_reconstruct.core import light_probe, merl, photo_io, pipeline, sun  # noqa: E402
-from brdf_reconstruct.operators import light, photos  # noqa: E402
+from brdf_reconstruct.brdf_addon import (  # noqa: E402
+    light_sources,
+    photo_list,
+    runner,  # noqa: E402
+)
+from brdf_reconstruct.core.brdf import merl  # noqa: E402
+from brdf_reconstruct.core.capture import light_probe, photo_io, sun  # noqa: E402
+from brdf_reconstruct.core.method import pipeline  # noqa: E402
+from testkit import blender_scene as BS  # noqa: E402
 
 
 @pytest.fixture
@@ -27,7 +31,7 @@ def tiny(tmp_path):
 
 
 def _add_photo(built):
-    added, unmatched = photos.add_photos(built["scene"], [str(built["photo"])])
+    added, unmatched = photo_list.add_photos(built["scene"], [str(built["photo"])])
     assert unmatched == [] and len(added) == 1
     p = added[0]
     p.irradiance = (BS.lit_irradiance(),) * 3
@@ -49,18 +53,18 @@ def test_photo_matched_by_image_name_stem(tiny):
 def test_unmatched_photos_are_listed_not_guessed(tiny, tmp_path):
     other = tmp_path / "elsewhere.exr"
     other.write_bytes(b"")
-    added, unmatched = photos.add_photos(tiny["scene"], [str(other)])
+    added, unmatched = photo_list.add_photos(tiny["scene"], [str(other)])
     assert added == [] and unmatched == ["photo elsewhere.exr matches no camera by image name"]
     twin = bpy.data.objects.new("twin", bpy.data.cameras.new("twin"))
     twin["brdf_image_name"] = "view0.png"
     tiny["scene"].collection.objects.link(twin)
-    added, unmatched = photos.add_photos(tiny["scene"], [str(tiny["photo"])])
+    added, unmatched = photo_list.add_photos(tiny["scene"], [str(tiny["photo"])])
     assert added == [] and "matches several cameras" in unmatched[0]
 
 
 def test_a_photo_is_not_added_twice(tiny):
     _add_photo(tiny)
-    added, unmatched = photos.add_photos(tiny["scene"], [str(tiny["photo"])])
+    added, unmatched = photo_list.add_photos(tiny["scene"], [str(tiny["photo"])])
     assert added == [] and "already in the list" in unmatched[0]
 
 
@@ -68,13 +72,13 @@ def test_a_photo_is_not_added_twice(tiny):
 
 def test_light_from_sun_object(tiny):
     p = _add_photo(tiny)
-    np.testing.assert_allclose(light.photo_light(tiny["scene"], p), BS.LIGHT, atol=1e-6)
+    np.testing.assert_allclose(light_sources.photo_light(tiny["scene"], p), BS.LIGHT, atol=1e-6)
 
 
 def test_light_from_direction(tiny):
     p = _add_photo(tiny)
     p.light_source, p.direction = "DIRECTION", (0.0, 0.0, 2.0)
-    np.testing.assert_allclose(light.photo_light(tiny["scene"], p), [0, 0, 1], atol=1e-7)
+    np.testing.assert_allclose(light_sources.photo_light(tiny["scene"], p), [0, 0, 1], atol=1e-7)
 
 
 def test_light_from_date_time_place_creates_a_sun(tiny):
@@ -86,11 +90,11 @@ def test_light_from_date_time_place_creates_a_sun(tiny):
     when = dt.datetime(2026, 6, 21, 15, 30, tzinfo=dt.timezone(dt.timedelta(hours=2)))
     e, n, u = sun.sun_direction(when, 48.1, 11.6)
     expected = np.array([-n, e, u])  # north turned 90 deg counter-clockwise: +Y -> -X
-    np.testing.assert_allclose(light.photo_light(tiny["scene"], p), expected, atol=1e-9)
-    shown = light.sun_object_direction(bpy.data.objects[light.SUN_NAME])
+    np.testing.assert_allclose(light_sources.photo_light(tiny["scene"], p), expected, atol=1e-9)
+    shown = light_sources.sun_object_direction(bpy.data.objects[light_sources.SUN_NAME])
     np.testing.assert_allclose(shown, expected, atol=1e-6)
-    assert bpy.data.objects[light.SUN_NAME] != tiny["sun"]
-    np.testing.assert_allclose(light.sun_object_direction(tiny["sun"]), BS.LIGHT, atol=1e-6)
+    assert bpy.data.objects[light_sources.SUN_NAME] != tiny["sun"]
+    np.testing.assert_allclose(light_sources.sun_object_direction(tiny["sun"]), BS.LIGHT, atol=1e-6)
 
 
 def test_sun_below_the_horizon_is_one_clear_error(tiny):
@@ -98,7 +102,7 @@ def test_sun_below_the_horizon_is_one_clear_error(tiny):
     p.light_source = "SUN_POSITION"
     p.when, p.latitude, p.longitude = "2026-06-21 02:00:00", 48.1, 11.6
     with pytest.raises(ValueError, match="below the horizon"):
-        light.photo_light(tiny["scene"], p)
+        light_sources.photo_light(tiny["scene"], p)
 
 
 def _probe_photo(tiny, tmp_path):
@@ -132,7 +136,7 @@ def test_light_from_sphere_probe(tiny, tmp_path):
     """A glossy sphere rendered by Cycles under the scene's Sun gives its direction."""
     p = _probe_photo(tiny, tmp_path)
     details = {}
-    found = light.photo_light(tiny["scene"], p, details)
+    found = light_sources.photo_light(tiny["scene"], p, details)
     angle = math.degrees(math.acos(np.clip(found @ BS.LIGHT, -1, 1)))
     assert angle < 1.0, angle
     assert details["sphere"] == "found" and angle < 2 * details["uncertainty_deg"]
@@ -142,13 +146,13 @@ def test_light_from_a_user_drawn_probe_circle(tiny, tmp_path):
     """A circle drawn 1.5 px off and 1.5 px too large is snapped to the outline: the
     same light as the automatic circle."""
     p = _probe_photo(tiny, tmp_path)
-    found = light.photo_light(tiny["scene"], p)
+    found = light_sources.photo_light(tiny["scene"], p)
     image = photo_io.read_photo(p.probe_path)
-    camera = light.camera_intrinsics(tiny["scene"], p.camera, 96, 96)
+    camera = light_sources.camera_intrinsics(tiny["scene"], p.camera, 96, 96)
     (cx, cy), r = light_probe.locate_sphere(image, camera=camera)
     p.probe_center, p.probe_radius = (cx + 1.5, cy - 1.0), r + 1.5
     details = {}
-    drawn = light.photo_light(tiny["scene"], p, details)
+    drawn = light_sources.photo_light(tiny["scene"], p, details)
     assert details["sphere"] == "given"
     assert math.degrees(math.acos(np.clip(drawn @ found, -1, 1))) < 0.05
 

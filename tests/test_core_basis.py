@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import basis, merl
+from brdf_reconstruct.core.brdf import basis, merl
 
 
 def _lambert_table(albedo):
@@ -84,7 +84,7 @@ def test_lambert_family_reconstructs_from_one_sample(tmp_path):
     """A basis of grey Lambert tables has a one-dimensional span; one sample pins it."""
     folder = _folder(tmp_path, [[a, a, a] for a in (0.05, 0.2, 0.5, 0.8)])
     B = basis.load_merl_folder(folder, cache_dir=tmp_path / "c", n_components=1)
-    from brdf_reconstruct.core import reconstruct
+    from brdf_reconstruct.core.method import reconstruct
 
     truth = _lambert_table([0.3, 0.3, 0.3])
     cell = merl.cells_from_linear(B.cells[[1000]])

@@ -11,7 +11,9 @@ import os
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import colmap as cm
+from brdf_reconstruct.core.capture import cameras as camconv
+from brdf_reconstruct.core.capture import colmap as cm
+from testkit import synthetic
 
 pycolmap = pytest.importorskip("pycolmap")
 
@@ -22,15 +24,15 @@ def _pinhole(fx, fy, cx, cy, R, t, xyz):
 
 
 def _project(fx, fy, cx, cy, w, h, R, t, xyz):
-    intr = cm.blender_intrinsics(fx, fy, cx, cy, w, h)
-    return cm.project_blender(cm.camera_to_world(R, t), intr, xyz)
+    intr = camconv.blender_intrinsics(fx, fy, cx, cy, w, h)
+    return camconv.project_blender(camconv.camera_to_world(R, t), intr, xyz)
 
 
 # --------------------------------------------------------------------------- intrinsics
 
 
 def test_landscape_centred_square_pixels():
-    intr = cm.blender_intrinsics(800.0, 800.0, 320.0, 240.0, 640, 480)
+    intr = camconv.blender_intrinsics(800.0, 800.0, 320.0, 240.0, 640, 480)
     assert intr.sensor_fit == "HORIZONTAL"
     assert intr.sensor_width == 36.0
     assert intr.lens == pytest.approx(800.0 * 36.0 / 640.0)  # 45 mm
@@ -43,13 +45,13 @@ def test_landscape_centred_square_pixels():
 def test_landscape_off_centre_shift_in_units_of_width():
     # Optical axis 64 px right of and 48 px above the centre: the view moves
     # left and down, by fractions of the larger dimension (the width).
-    intr = cm.blender_intrinsics(800.0, 800.0, 384.0, 192.0, 640, 480)
+    intr = camconv.blender_intrinsics(800.0, 800.0, 384.0, 192.0, 640, 480)
     assert intr.shift_x == pytest.approx(-0.1)
     assert intr.shift_y == pytest.approx(-48.0 / 640.0)
 
 
 def test_portrait_fits_vertically_and_shifts_in_units_of_height():
-    intr = cm.blender_intrinsics(800.0, 800.0, 200.0, 360.0, 480, 640)
+    intr = camconv.blender_intrinsics(800.0, 800.0, 200.0, 360.0, 480, 640)
     assert intr.sensor_fit == "VERTICAL"
     assert intr.sensor_height == 36.0
     assert intr.sensor_width == pytest.approx(27.0)
@@ -59,21 +61,21 @@ def test_portrait_fits_vertically_and_shifts_in_units_of_height():
 
 
 def test_square_image_fits_horizontally():
-    assert cm.blender_intrinsics(500, 500, 256, 256, 512, 512).sensor_fit == "HORIZONTAL"
+    assert camconv.blender_intrinsics(500, 500, 256, 256, 512, 512).sensor_fit == "HORIZONTAL"
 
 
 @pytest.mark.parametrize(
     ("fx", "fy", "ax", "ay"), [(900.0, 800.0, 1.0, 1.125), (800, 900, 1.125, 1)]
 )
 def test_unequal_focal_lengths_become_pixel_aspect(fx, fy, ax, ay):
-    intr = cm.blender_intrinsics(fx, fy, 320, 240, 640, 480)
+    intr = camconv.blender_intrinsics(fx, fy, 320, 240, 640, 480)
     assert (intr.pixel_aspect_x, intr.pixel_aspect_y) == pytest.approx((ax, ay))
     assert min(intr.pixel_aspect_x, intr.pixel_aspect_y) == 1.0
 
 
 def test_fit_follows_displayed_aspect_not_pixel_count():
     # 500 x 480 pixels, each 1.25 times as tall as wide: displayed 500 x 600, portrait.
-    intr = cm.blender_intrinsics(1000.0, 800.0, 250, 240, 500, 480)
+    intr = camconv.blender_intrinsics(1000.0, 800.0, 250, 240, 500, 480)
     assert intr.pixel_aspect_y == pytest.approx(1.25)
     assert intr.sensor_fit == "VERTICAL"
 
@@ -84,14 +86,14 @@ def test_intrinsics_round_trip(w, h, seed):
     rng = np.random.default_rng(seed)
     fx, fy = rng.uniform(0.5, 2.0, 2) * max(w, h)
     cx, cy = rng.uniform(-0.2, 1.2) * w, rng.uniform(-0.2, 1.2) * h
-    back = cm.pinhole_from_blender(cm.blender_intrinsics(fx, fy, cx, cy, w, h))
+    back = camconv.pinhole_from_blender(camconv.blender_intrinsics(fx, fy, cx, cy, w, h))
     np.testing.assert_allclose(back, (fx, fy, cx, cy), rtol=1e-12, atol=1e-9)
 
 
 def test_float32_inputs_give_float64_results():
     f32 = np.float32
-    intr = cm.blender_intrinsics(f32(800), f32(820), f32(300.5), f32(250.25), 640, 480)
-    back = cm.pinhole_from_blender(intr)
+    intr = camconv.blender_intrinsics(f32(800), f32(820), f32(300.5), f32(250.25), 640, 480)
+    back = camconv.pinhole_from_blender(intr)
     np.testing.assert_allclose(back, (800, 820, 300.5, 250.25), rtol=1e-12)
     assert all(isinstance(v, float) for v in back)
 
@@ -112,31 +114,31 @@ def test_intrinsics_reject_bad_input(kwargs, word):
     args = {"fx": 800.0, "fy": 800.0, "cx": 320.0, "cy": 240.0, "width": 640, "height": 480}
     args.update(kwargs)
     with pytest.raises(ValueError, match=word):
-        cm.blender_intrinsics(**args)
+        camconv.blender_intrinsics(**args)
 
 
 def test_pinhole_from_blender_rejects_auto_fit():
-    intr = cm.blender_intrinsics(800, 800, 320, 240, 640, 480)
-    bad = cm.BlenderIntrinsics(**{**intr.__dict__, "sensor_fit": "AUTO"})
+    intr = camconv.blender_intrinsics(800, 800, 320, 240, 640, 480)
+    bad = camconv.BlenderIntrinsics(**{**intr.__dict__, "sensor_fit": "AUTO"})
     with pytest.raises(ValueError, match="sensor_fit"):
-        cm.pinhole_from_blender(bad)
+        camconv.pinhole_from_blender(bad)
 
 
 # --------------------------------------------------------------------------- poses
 
 
 def test_identity_pose_flips_y_and_z():
-    M = cm.camera_to_world(np.eye(3), np.zeros(3))
+    M = camconv.camera_to_world(np.eye(3), np.zeros(3))
     np.testing.assert_array_equal(M, np.diag([1.0, -1.0, -1.0, 1.0]))
 
 
 def test_pose_axes_and_centre():
-    R, t = cm.look_at([3.0, -2.0, 1.5], [0.2, 0.1, -0.3])
-    M = cm.camera_to_world(R, t)
+    R, t = camconv.look_at([3.0, -2.0, 1.5], [0.2, 0.1, -0.3])
+    M = camconv.camera_to_world(R, t)
     np.testing.assert_allclose(M[:3, :3].T @ M[:3, :3], np.eye(3), atol=1e-12)
     assert np.linalg.det(M[:3, :3]) == pytest.approx(1.0)
     np.testing.assert_allclose(M[:3, 3], [3.0, -2.0, 1.5], atol=1e-12)
-    np.testing.assert_allclose(cm.camera_centre(R, t), [3.0, -2.0, 1.5], atol=1e-12)
+    np.testing.assert_allclose(camconv.camera_centre(R, t), [3.0, -2.0, 1.5], atol=1e-12)
     view = np.array([0.2, 0.1, -0.3]) - [3.0, -2.0, 1.5]
     np.testing.assert_allclose(-M[:3, 2], view / np.linalg.norm(view), atol=1e-12)  # Blender -z
     np.testing.assert_allclose(M[:3, 1], -R[1], atol=1e-12)  # Blender +y is COLMAP -y
@@ -145,18 +147,18 @@ def test_pose_axes_and_centre():
 
 def test_pose_rejects_non_rotation():
     with pytest.raises(ValueError, match="R_cam_from_world"):
-        cm.camera_to_world(np.diag([1.0, 1.0, -1.0]), np.zeros(3))
+        camconv.camera_to_world(np.diag([1.0, 1.0, -1.0]), np.zeros(3))
     with pytest.raises(ValueError, match="R_cam_from_world"):
-        cm.camera_to_world(np.eye(2), np.zeros(3))
+        camconv.camera_to_world(np.eye(2), np.zeros(3))
     with pytest.raises(ValueError, match="t must"):
-        cm.camera_centre(np.eye(3), np.zeros(4))
+        camconv.camera_centre(np.eye(3), np.zeros(4))
 
 
 def test_look_at_rejects_degenerate():
     with pytest.raises(ValueError, match="target"):
-        cm.look_at([1, 2, 3], [1, 2, 3])
+        camconv.look_at([1, 2, 3], [1, 2, 3])
     with pytest.raises(ValueError, match="up"):
-        cm.look_at([0, 0, 5], [0, 0, 0])
+        camconv.look_at([0, 0, 5], [0, 0, 0])
 
 
 # --------------------------------------------------------------------------- projection
@@ -171,7 +173,7 @@ def test_known_point_projects_to_known_pixel():
 
 
 def test_target_of_look_at_lands_on_principal_point():
-    R, t = cm.look_at([4, 1, 2], [0, 0, 0])
+    R, t = camconv.look_at([4, 1, 2], [0, 0, 0])
     for w, h, cx, cy in [(640, 480, 301.7, 255.2), (480, 640, 250.0, 300.0)]:
         px = _project(900, 870, cx, cy, w, h, R, t, [[0, 0, 0]])
         np.testing.assert_allclose(px, [[cx, cy]], atol=1e-10)
@@ -189,7 +191,7 @@ def test_target_of_look_at_lands_on_principal_point():
 def test_projection_matches_pinhole_and_pycolmap(w, h, params):
     rng = np.random.default_rng(1)
     xyz = rng.uniform(-1, 1, (300, 3))
-    R, t = cm.look_at([0.5, -4.0, 1.0], [0.1, 0.0, 0.0])
+    R, t = camconv.look_at([0.5, -4.0, 1.0], [0.1, 0.0, 0.0])
     px = _project(*params, w, h, R, t, xyz)
     np.testing.assert_allclose(px, _pinhole(*params, R, t, xyz), atol=1e-9)
     camera = pycolmap.Camera.create_from_model_name(1, "PINHOLE", 1.0, w, h)
@@ -207,19 +209,19 @@ def test_points_behind_camera_are_nan_and_empty_input_is_empty():
 def test_view_scale():
     centres = [[5, 0, 0], [0, 5, 0], [-5, 0, 0], [0, 0, 5]]
     xyz = np.random.default_rng(0).normal(size=(1001, 3)) * 0.1
-    assert cm.view_scale(centres, xyz) == pytest.approx(5.0, rel=0.05)
-    assert cm.view_scale(centres) == pytest.approx(5.0)  # about their median, the origin
-    assert cm.view_scale(np.zeros((0, 3))) == 1.0
-    assert cm.view_scale([[1, 2, 3]]) == 1.0  # one camera, no points: degenerate
+    assert camconv.view_scale(centres, xyz) == pytest.approx(5.0, rel=0.05)
+    assert camconv.view_scale(centres) == pytest.approx(5.0)  # about their median, the origin
+    assert camconv.view_scale(np.zeros((0, 3))) == 1.0
+    assert camconv.view_scale([[1, 2, 3]]) == 1.0  # one camera, no points: degenerate
 
 
 # --------------------------------------------------------------------------- reading
 
 
 def _views():
-    R1, t1 = cm.look_at([4, 0, 1], [0, 0, 0])
-    R2, t2 = cm.look_at([0, 4, 1], [0, 0, 0])
-    R3, t3 = cm.look_at([-3, -3, 2], [0, 0, 0])
+    R1, t1 = camconv.look_at([4, 0, 1], [0, 0, 0])
+    R2, t2 = camconv.look_at([0, 4, 1], [0, 0, 0])
+    R3, t3 = camconv.look_at([-3, -3, 2], [0, 0, 0])
     return [
         ("b.jpg", "SIMPLE_PINHOLE", [700, 240, 330], 480, 640, R2, t2),
         ("a.jpg", "PINHOLE", [800, 860, 300, 260], 640, 480, R1, t1),
@@ -232,7 +234,7 @@ def model_dirs(tmp_path_factory):
     rng = np.random.default_rng(0)
     xyz = rng.uniform(-1, 1, (200, 3))
     rgb = rng.integers(0, 256, (200, 3), dtype=np.uint8)
-    rec = cm.synthetic_reconstruction(_views(), xyz, rgb)
+    rec = synthetic.synthetic_reconstruction(_views(), xyz, rgb)
     root = tmp_path_factory.mktemp("colmap")
     dirs = {}
     for kind in ("bin", "txt", "legacy"):
@@ -317,15 +319,15 @@ def test_model_without_registered_images(tmp_path):
 
 
 def test_fisheye_is_flagged_and_spherical_rejected(tmp_path):
-    R, t = cm.look_at([4, 0, 1], [0, 0, 0])
+    R, t = camconv.look_at([4, 0, 1], [0, 0, 0])
     fisheye = [("f.jpg", "SIMPLE_RADIAL_FISHEYE", [500, 320, 240, 0.0], 640, 480, R, t)]
     (tmp_path / "f").mkdir()
     (tmp_path / "s").mkdir()
-    cm.synthetic_reconstruction(fisheye, np.zeros((0, 3))).write(str(tmp_path / "f"))
+    synthetic.synthetic_reconstruction(fisheye, np.zeros((0, 3))).write(str(tmp_path / "f"))
     (im,) = cm.read_model(tmp_path / "f").images
     assert im.distorted  # a fisheye is not a pinhole even with zero coefficients
     sphere = [("s.jpg", "EQUIRECTANGULAR", [640, 320], 640, 320, R, t)]
-    cm.synthetic_reconstruction(sphere, np.zeros((0, 3))).write(str(tmp_path / "s"))
+    synthetic.synthetic_reconstruction(sphere, np.zeros((0, 3))).write(str(tmp_path / "s"))
     with pytest.raises(ValueError, match="EQUIRECTANGULAR"):
         cm.read_model(tmp_path / "s")
 

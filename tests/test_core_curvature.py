@@ -5,7 +5,7 @@ import time
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import curvature
+from brdf_reconstruct.core.method import curvature
 
 # ---------------------------------------------------------------- ray casting
 

@@ -1,4 +1,4 @@
-"""core.exif: exposure, capture time and GPS from OIIO metadata.
+"""core.capture.exif: exposure, capture time and GPS from OIIO metadata.
 
 Every parser is checked on what OpenImageIO really produces: the metadata are
 written into a JPEG or TIFF through OIIO and read back from
@@ -15,7 +15,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from brdf_reconstruct.core import exif, sun
+from brdf_reconstruct.core.capture import exif, sun
 
 FLOAT3 = oiio.TypeDesc("float[3]")
 

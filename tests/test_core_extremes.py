@@ -9,7 +9,9 @@ removes. ``bench/extremes_bench.py`` runs the same cases on the bunny.
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import database, merl, observations, pipeline, synthetic
+from brdf_reconstruct.core.brdf import database, merl
+from brdf_reconstruct.core.method import observations, pipeline
+from testkit import synthetic
 
 RES = 64
 FAST = pipeline.PipelineSettings(n_samples=12, n_trials=2, seed=1)

@@ -1,4 +1,4 @@
-"""core.irradiance: irradiance ratios between photos from a Lambertian reference.
+"""core.capture.irradiance: irradiance ratios between photos from a Lambertian reference.
 
 Reference model: a Lambertian surface of albedo rho under irradiance E has
 radiance L = (rho / pi) E cos(theta). Synthetic references with random normals
@@ -9,7 +9,7 @@ cos = 0.5 under twice the irradiance looks the same as one facing a single E.
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import irradiance
+from brdf_reconstruct.core.capture import irradiance
 
 ALBEDO = np.array([0.18, 0.21, 0.15])
 

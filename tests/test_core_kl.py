@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import kl
-from brdf_reconstruct.core.kl import kl_divergence
+from brdf_reconstruct.core.method import kl
+from brdf_reconstruct.core.method.kl import kl_divergence
 
 
 @pytest.fixture

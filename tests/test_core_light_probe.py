@@ -1,10 +1,10 @@
-"""Light direction from a mirror sphere (core.light_probe): synthetic renders with a known
+"""Light direction from a mirror sphere (core.capture.light_probe): synthetic renders with a known
 distant light. The renderers here serve tests/test_core_sphere_outline.py too."""
 
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import light_probe as lp
+from brdf_reconstruct.core.capture import light_probe as lp
 
 LOBE = 0.0005  # radiance = exp(-(1 - r.l) / LOBE), a narrow lobe about the light
 SS = 4  # supersampling per axis, so highlight centroids are not pixel-quantised

@@ -8,7 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import database, lobe_fit, merl, models
+from brdf_reconstruct.core.bake import fitting, lobes
+from brdf_reconstruct.core.brdf import database, merl, models
 
 
 def _unit(v):
@@ -25,7 +26,7 @@ def _pairs(n, seed=0):
     return l, v
 
 
-_params = lobe_fit.LobeParams.build
+_params = lobes.LobeParams.build
 
 
 # A material of every kind of term the model has, for the round trips.
@@ -54,14 +55,14 @@ def plastic_table():
 
 # --------------------------------------------------------------------- the model itself
 def test_ggx_lobe_is_models_ggx_without_fresnel():
-    # core.models: height-correlated Smith GGX; Schlick with f0 = 1 is F = 1.
+    # core.brdf.models: height-correlated Smith GGX; Schlick with f0 = 1 is F = 1.
     l, v = _pairs(2000)
     color = [0.7, 0.5, 0.2]
     for alpha in (0.01, 0.2, 1.0):
         spec = {"name": "g", "lobes": [{"type": "ggx", "alpha": alpha, "weight": color,
                                         "fresnel": {"type": "schlick", "f0": 1.0}}]}
         p = _params(lobes=(("ggx", color, 0.0, alpha),))
-        np.testing.assert_allclose(lobe_fit.evaluate(p, l, v), models.evaluate(spec, l, v),
+        np.testing.assert_allclose(lobes.evaluate(p, l, v), models.evaluate(spec, l, v),
                                    rtol=1e-10, atol=1e-12)
 
 
@@ -70,18 +71,18 @@ def test_grazing_term_is_schlick_with_f0_zero():
     spec = {"name": "g", "lobes": [{"type": "ggx", "alpha": 0.3,
                                     "fresnel": {"type": "schlick", "f0": 0.0}}]}
     p = _params(lobes=(("ggx", (0.0, 0.0, 0.0), 1.0, 0.3),))
-    np.testing.assert_allclose(lobe_fit.evaluate(p, l, v), models.evaluate(spec, l, v),
+    np.testing.assert_allclose(lobes.evaluate(p, l, v), models.evaluate(spec, l, v),
                                rtol=1e-10, atol=1e-12)
 
 
 def test_beckmann_lobe_close_to_exact_smith():
     # Cycles' Beckmann Lambda is Walter's rational fit of the exact (erf) one in
-    # core.models: the two agree to well under 1 % where the lobe has energy.
+    # core.brdf.models: the two agree to well under 1 % where the lobe has energy.
     l, v = _pairs(20000, seed=2)
     for alpha in (0.05, 0.3):
         spec = {"name": "b", "lobes": [{"type": "beckmann", "alpha": alpha,
                                         "fresnel": {"type": "schlick", "f0": 1.0}}]}
-        ours = lobe_fit.evaluate(_params(lobes=(("beckmann", (1, 1, 1), 0.0, alpha),)), l, v)
+        ours = lobes.evaluate(_params(lobes=(("beckmann", (1, 1, 1), 0.0, alpha),)), l, v)
         exact = models.evaluate(spec, l, v)
         w = l[:, 2:] * v[:, 2:]  # energy in an image
         assert np.sum(np.abs(ours - exact) * w) / np.sum(exact * w) < 5e-3
@@ -90,19 +91,19 @@ def test_beckmann_lobe_close_to_exact_smith():
 def test_lambert_and_horizon():
     l, v = _pairs(100, seed=3)
     p = _params(diffuse=(0.5, 0.25, 0.1))
-    np.testing.assert_allclose(lobe_fit.evaluate(p, l, v),
+    np.testing.assert_allclose(lobes.evaluate(p, l, v),
                                np.tile(np.array([0.5, 0.25, 0.1]) / np.pi, (100, 1)))
     below = l * np.array([1.0, 1.0, -1.0])
-    assert np.all(lobe_fit.evaluate(FULL, below, v) == 0.0)
-    assert np.all(lobe_fit.evaluate(FULL, l, below) == 0.0)
+    assert np.all(lobes.evaluate(FULL, below, v) == 0.0)
+    assert np.all(lobes.evaluate(FULL, l, below) == 0.0)
 
 
 def test_reciprocal_finite_and_dtype():
     l, v = _pairs(5000, seed=4)
-    a = lobe_fit.evaluate(FULL, l, v)
-    np.testing.assert_allclose(a, lobe_fit.evaluate(FULL, v, l), rtol=1e-12)
+    a = lobes.evaluate(FULL, l, v)
+    np.testing.assert_allclose(a, lobes.evaluate(FULL, v, l), rtol=1e-12)
     assert np.all(np.isfinite(a)) and np.all(a >= 0.0)
-    b = lobe_fit.evaluate(FULL, l.astype(np.float32), v.astype(np.float32))
+    b = lobes.evaluate(FULL, l.astype(np.float32), v.astype(np.float32))
     assert b.dtype == np.float64
     np.testing.assert_allclose(b, a, rtol=1e-4, atol=1e-6)
 
@@ -110,28 +111,28 @@ def test_reciprocal_finite_and_dtype():
 def test_velvet_is_zero_at_the_mirror_direction_and_peaks_at_grazing_half_vector():
     p = _params(sheen=(1.0, 1.0, 1.0), sigma=0.4)
     n = np.array([[0.0, 0.0, 1.0]])
-    assert np.all(lobe_fit.evaluate(p, n, n) == 0.0)  # n.h = 1: Cycles returns 0
+    assert np.all(lobes.evaluate(p, n, n) == 0.0)  # n.h = 1: Cycles returns 0
     # Half vector tilting away from n: velvet rises (D ~ exp(-cot^2 / sigma^2)).
     tilts = np.radians([10.0, 30.0, 50.0])
     l, v = merl.dirs_from_half_diff(tilts, np.radians(20.0), np.pi / 2)
-    values = lobe_fit.evaluate(p, l, v)[:, 0]
+    values = lobes.evaluate(p, l, v)[:, 0]
     assert np.all(np.diff(values) > 0.0)
 
 
 def test_params_dict_round_trip():
     d = FULL.to_dict()
     assert json.loads(json.dumps(d)) == d
-    back = lobe_fit.LobeParams.from_dict(d)
+    back = lobes.LobeParams.from_dict(d)
     l, v = _pairs(500, seed=5)
-    np.testing.assert_array_equal(lobe_fit.evaluate(back, l, v), lobe_fit.evaluate(FULL, l, v))
-    np.testing.assert_array_equal(lobe_fit.evaluate(d, l, v), lobe_fit.evaluate(FULL, l, v))
+    np.testing.assert_array_equal(lobes.evaluate(back, l, v), lobes.evaluate(FULL, l, v))
+    np.testing.assert_array_equal(lobes.evaluate(d, l, v), lobes.evaluate(FULL, l, v))
     with pytest.raises(ValueError, match="distribution"):
         _params(lobes=(("phong", (1, 1, 1), 0.0, 0.1),))
 
 
 # ---------------------------------------------------------------------------- fitting
 def test_lambert_table_gives_exact_kd(lambert_table):
-    fit = lobe_fit.fit(lambert_table)
+    fit = fitting.fit(lambert_table)
     np.testing.assert_allclose(fit.params.diffuse, [0.6, 0.35, 0.1], atol=1e-3)
     assert fit.errors["log_rmse"] < 1e-4
     assert max(fit.errors["sphere_rel_rmse_lights"]) < 1e-3
@@ -139,7 +140,7 @@ def test_lambert_table_gives_exact_kd(lambert_table):
 
 
 def test_own_model_table_is_recovered():
-    fit = lobe_fit.fit(lobe_fit.tabulate(FULL), n_lobes=2, sheen=True)
+    fit = fitting.fit(lobes.tabulate(FULL), n_lobes=2, sheen=True)
     p = fit.params
     assert p.distributions == FULL.distributions
     np.testing.assert_allclose(p.alphas, FULL.alphas, rtol=0.02)
@@ -184,7 +185,7 @@ def test_heldout_bounds_cover_every_heldout():
 
 @pytest.mark.parametrize("name", sorted(HELDOUT_BOUNDS))
 def test_heldout_fit_error_bounded(heldout_tables, name):
-    fit = lobe_fit.fit(heldout_tables[name])
+    fit = fitting.fit(heldout_tables[name])
     e = fit.errors
     print(f"{name}: log_rmse {e['log_rmse']:.4f} sphere {e['sphere_rel_rmse']:.4f} "
           f"lights {np.round(e['sphere_rel_rmse_lights'], 4)} fit {fit.info['time_fit_s']:.2f}s")
@@ -195,14 +196,14 @@ def test_heldout_fit_error_bounded(heldout_tables, name):
 
 
 def test_unmeasured_nan_inf_negative_cells_are_ignored(plastic_table):
-    clean = lobe_fit.fit(plastic_table, errors=False)
+    clean = fitting.fit(plastic_table, errors=False)
     damaged = plastic_table.copy()
     rng = np.random.default_rng(7)
     flat = damaged.reshape(3, -1)
     for value in (np.nan, np.inf, -1.0):
         cells = rng.choice(flat.shape[1], size=flat.shape[1] // 20, replace=False)
         flat[rng.integers(0, 3), cells] = value
-    fit = lobe_fit.fit(damaged)
+    fit = fitting.fit(damaged)
     for name in ("diffuse", "colors", "grazing", "alphas", "sheen"):
         value = getattr(fit.params, name)
         assert np.all(np.isfinite(value))
@@ -211,16 +212,16 @@ def test_unmeasured_nan_inf_negative_cells_are_ignored(plastic_table):
 
 
 def test_float32_and_channel_last_layouts(plastic_table):
-    ref = lobe_fit.fit(plastic_table, errors=False)
+    ref = fitting.fit(plastic_table, errors=False)
     for table in (plastic_table.astype(np.float32), np.moveaxis(plastic_table, 0, -1)):
-        fit = lobe_fit.fit(table, errors=False)
+        fit = fitting.fit(table, errors=False)
         np.testing.assert_allclose(fit.params.alphas, ref.params.alphas, rtol=1e-3)
         np.testing.assert_allclose(fit.params.diffuse, ref.params.diffuse, rtol=1e-3, atol=1e-6)
 
 
 def test_deterministic(plastic_table):
-    a = lobe_fit.fit(plastic_table, n_lobes=1, errors=False)
-    b = lobe_fit.fit(plastic_table, n_lobes=1, errors=False)
+    a = fitting.fit(plastic_table, n_lobes=1, errors=False)
+    b = fitting.fit(plastic_table, n_lobes=1, errors=False)
     assert a.params.to_dict() == b.params.to_dict()
     assert set(a.errors) == {"fit_loss"}
 
@@ -231,7 +232,7 @@ def test_dark_diffuse_under_a_mirror_peak_is_recovered():
     spec = {"name": "m", "lobes": [
         {"type": "lambert", "albedo": [0.02, 0.01, 0.005]},
         {"type": "ggx", "alpha": 0.01, "fresnel": {"type": "dielectric", "eta": 1.5}}]}
-    fit = lobe_fit.fit(database.make_table(spec), errors=False)
+    fit = fitting.fit(database.make_table(spec), errors=False)
     np.testing.assert_allclose(fit.params.diffuse, [0.02, 0.01, 0.005], rtol=0.1)
     assert fit.params.alphas[0] == pytest.approx(0.01, rel=0.05)
 
@@ -240,18 +241,18 @@ def test_dark_diffuse_under_a_mirror_peak_is_recovered():
 def test_mirror_extreme_is_finite(alpha):
     spec = {"name": "m", "lobes": [{"type": "ggx", "alpha": alpha,
                                     "fresnel": {"type": "conductor", "metal": "Ag"}}]}
-    fit = lobe_fit.fit(database.make_table(spec))
+    fit = fitting.fit(database.make_table(spec))
     d = fit.params.to_dict()
     assert np.all(np.isfinite(json.loads(json.dumps(d))["diffuse"]))
     assert np.all(np.isfinite(fit.params.colors)) and np.all(np.isfinite(fit.params.alphas))
-    assert fit.params.alphas.min() >= lobe_fit.ALPHA_MIN
+    assert fit.params.alphas.min() >= lobes.ALPHA_MIN
     assert all(np.isfinite(x) for x in fit.errors["sphere_rel_rmse_lights"])
 
 
 def test_near_black_and_black_are_finite(lambert_table):
-    fit = lobe_fit.fit(lambert_table * 1e-6, errors=False)
+    fit = fitting.fit(lambert_table * 1e-6, errors=False)
     np.testing.assert_allclose(fit.params.diffuse, np.array([0.6, 0.35, 0.1]) * 1e-6, rtol=1e-3)
-    black = lobe_fit.fit(np.where(np.isnan(lambert_table), np.nan, 0.0))
+    black = fitting.fit(np.where(np.isnan(lambert_table), np.nan, 0.0))
     for name in ("diffuse", "colors", "grazing", "sheen"):
         assert np.all(getattr(black.params, name) == 0.0)
     assert np.all(np.isfinite(black.params.alphas))
@@ -260,16 +261,16 @@ def test_near_black_and_black_are_finite(lambert_table):
 
 def test_bad_input_is_a_clear_error(lambert_table):
     with pytest.raises(ValueError, match="shape"):
-        lobe_fit.fit(np.zeros((3, 90, 90)))
+        fitting.fit(np.zeros((3, 90, 90)))
     with pytest.raises(ValueError, match="n_lobes"):
-        lobe_fit.fit(lambert_table, n_lobes=3)
+        fitting.fit(lambert_table, n_lobes=3)
     with pytest.raises(ValueError, match="no measured cell"):
-        lobe_fit.fit(np.full((3, *merl.SHAPE), np.nan))
+        fitting.fit(np.full((3, *merl.SHAPE), np.nan))
 
 
 def test_fewer_lobes_and_no_sheen(plastic_table):
     for n_lobes in (0, 1):
-        fit = lobe_fit.fit(plastic_table, n_lobes=n_lobes, sheen=False, errors=False)
+        fit = fitting.fit(plastic_table, n_lobes=n_lobes, sheen=False, errors=False)
         assert fit.params.alphas.shape == (n_lobes,)
         assert np.all(fit.params.sheen == 0.0)
-    assert lobe_fit.fit(plastic_table, n_lobes=1, sheen=False).errors["sphere_rel_rmse"] < 0.05
+    assert fitting.fit(plastic_table, n_lobes=1, sheen=False).errors["sphere_rel_rmse"] < 0.05

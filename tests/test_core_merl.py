@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import merl
+from brdf_reconstruct.core.brdf import merl
 
 SCALE = (1 / 1500, 1.15 / 1500, 1.66 / 1500)
 

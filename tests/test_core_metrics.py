@@ -1,8 +1,8 @@
-"""The rendered-sphere error used by the benchmarks (core.metrics.sphere_error)."""
+"""The rendered-sphere error used by the benchmarks (core.brdf.metrics.sphere_error)."""
 
 import numpy as np
 
-from brdf_reconstruct.core import merl, metrics
+from brdf_reconstruct.core.brdf import merl, metrics
 
 
 def _lambert(albedo):

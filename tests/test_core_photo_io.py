@@ -5,7 +5,9 @@ import OpenImageIO as oiio
 import pytest
 from image_files import write_image
 
-from brdf_reconstruct.core import database, photo_io, pictures
+from brdf_reconstruct.core.brdf import database
+from brdf_reconstruct.core.capture import photo_io
+from brdf_reconstruct.core.method import pictures
 
 
 def test_srgb_decoding_matches_the_standard():

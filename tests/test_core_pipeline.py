@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import database, metrics, pipeline, render, synthetic
+from brdf_reconstruct.core.brdf import database, metrics, render
+from brdf_reconstruct.core.method import pipeline
+from testkit import synthetic
 
 RES = 96
 

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import database, merl, metrics, reconstruct, render, sampling
+from brdf_reconstruct.core.brdf import database, merl, metrics, render
+from brdf_reconstruct.core.method import reconstruct, sampling
 
 LIGHT = render.REFERENCE_LIGHT
 

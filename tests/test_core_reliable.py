@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import merl, observations, reliable, synthetic
+from brdf_reconstruct.core.brdf import merl
+from brdf_reconstruct.core.method import observations, reliable
+from testkit import synthetic
 
 
 def _lambert_table(albedo=0.5):
@@ -85,7 +87,7 @@ def test_saturated_pixels_from_the_white_level_mask_are_removed_and_counted(scen
 
 def test_saturated_mask_turns_off_the_brightest_peak_in_the_pipeline(scene):
     """pipeline.saturated_pixels counts the mask, so Eq. 2 is skipped as with a clip."""
-    from brdf_reconstruct.core import pipeline
+    from brdf_reconstruct.core.method import pipeline
 
     truth, _ = scene
     light = np.array([0.0, 0.0, 1.0])
@@ -239,7 +241,7 @@ def test_brightest_peak_ignores_a_single_hot_pixel(scene):
     light = synthetic.LIGHTS[0] / np.linalg.norm(synthetic.LIGHTS[0])
     spec = {"name": "gloss", "lobes": [{"type": "lambert", "albedo": 0.2}],
             "coat": {"distribution": "ggx", "alpha": 0.1, "eta": 1.5}}
-    from brdf_reconstruct.core import database
+    from brdf_reconstruct.core.brdf import database
 
     photo = synthetic.photo(database.make_table(spec), truth, light)
     hot = (5, 5)
@@ -391,7 +393,7 @@ def test_monotone_residuals_equal_a_plain_sort_and_fit():
 def test_observe_view_directions_and_subset_match_the_plain_ones(scene):
     import dataclasses
 
-    from brdf_reconstruct.core import render
+    from brdf_reconstruct.core.brdf import render
 
     truth, scan = scene
     light = synthetic.LIGHTS[2]

@@ -4,7 +4,9 @@
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import database, observations, reliable, synthetic
+from brdf_reconstruct.core.brdf import database
+from brdf_reconstruct.core.method import observations, reliable
+from testkit import synthetic
 
 
 @pytest.fixture(scope="module")

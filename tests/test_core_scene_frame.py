@@ -1,10 +1,10 @@
-"""core.scene_frame: east/north/up in world space and the scene's up from cameras.
+"""core.capture.scene_frame: east/north/up in world space and the scene's up from cameras.
 
-References: the z-up convention of operators/light.py ``sun_position_direction``
+References: the z-up convention of brdf_addon/light_sources.py ``sun_position_direction``
 (rotation by the north offset about +Z applied to ENU), the NREL SPA example's
 Sun (tests/test_core_sun.py: azimuth 194.34024 deg, topocentric zenith
-50.11162 deg), and analytic rings of look-at cameras (core.colmap.look_at,
-core.colmap.camera_to_world) built in a rotated world whose up is known.
+50.11162 deg), and analytic rings of look-at cameras (core.capture.cameras.look_at,
+core.capture.cameras.camera_to_world) built in a rotated world whose up is known.
 """
 
 import datetime as dt
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from brdf_reconstruct.core import colmap, scene_frame, sun
+from brdf_reconstruct.core.capture import cameras, scene_frame, sun
 
 SPA_WHEN = dt.datetime(2003, 10, 17, 12, 30, 30, tzinfo=dt.timezone(dt.timedelta(hours=-7)))
 SPA_LAT, SPA_LON = 39.742476, -105.1786
@@ -53,8 +53,8 @@ def _cameras(headings_deg, elevation_deg, radius=2.0, roll_deg=None, rng=None, j
         if jitter:
             c = c + rng.normal(0.0, jitter * radius, 3)
             target = target + rng.normal(0.0, jitter * radius, 3)
-        R_cw, t = colmap.look_at(Q @ c + SHIFT, Q @ target + SHIFT, up=TRUE_UP)
-        M = colmap.camera_to_world(R_cw, t)
+        R_cw, t = cameras.look_at(Q @ c + SHIFT, Q @ target + SHIFT, up=TRUE_UP)
+        M = cameras.camera_to_world(R_cw, t)
         view = -M[:3, 2]
         roll = Rotation.from_rotvec(rolls[k] * view).as_matrix()
         rotations.append(roll @ M[:3, :3])
@@ -209,8 +209,8 @@ def _facing_the_facade(spots):
     looking straight ahead along +y: (N, 3, 3) rotations and (N, 3) centres."""
     R, C = [], []
     for x, z in spots:
-        R_cw, t = colmap.look_at(Q @ [x, -5.0, z] + SHIFT, Q @ [x, 0.0, z] + SHIFT, TRUE_UP)
-        M = colmap.camera_to_world(R_cw, t)
+        R_cw, t = cameras.look_at(Q @ [x, -5.0, z] + SHIFT, Q @ [x, 0.0, z] + SHIFT, TRUE_UP)
+        M = cameras.camera_to_world(R_cw, t)
         R.append(M[:3, :3])
         C.append(M[:3, 3])
     return np.array(R), np.array(C)
@@ -238,8 +238,8 @@ def test_a_few_portrait_shots_do_not_fool_it():
     # vectors then span the facade's plane, whose normal (the viewing direction) is wrong.
     R = []
     for k, x in enumerate(np.linspace(-3, 3, 10)):
-        R_cw, t = colmap.look_at(Q @ [x, -5.0, 1.0] + SHIFT, Q @ [x, 0.0, 1.0] + SHIFT, TRUE_UP)
-        M = colmap.camera_to_world(R_cw, t)
+        R_cw, t = cameras.look_at(Q @ [x, -5.0, 1.0] + SHIFT, Q @ [x, 0.0, 1.0] + SHIFT, TRUE_UP)
+        M = cameras.camera_to_world(R_cw, t)
         roll = Rotation.from_rotvec(np.pi / 2 * -M[:3, 2]).as_matrix() if k in (2, 7) else np.eye(3)
         R.append(roll @ M[:3, :3])
     est = scene_frame.estimate_up(np.array(R))

@@ -5,8 +5,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import database, merl, render
-from brdf_reconstruct.core.selection import SelectionResult, View, select_by_kl, shade_gbuffer
+from brdf_reconstruct.core.brdf import database, merl, render
+from brdf_reconstruct.core.method.selection import (
+    SelectionResult,
+    View,
+    select_by_kl,
+    shade_gbuffer,
+)
 
 CAMERA = np.array([0.0, 0.0, 4.0])
 LIGHTS = (np.array([0.3, 0.4, 1.0]), np.array([-0.6, 0.1, 0.8]))

@@ -1,4 +1,4 @@
-"""The probe sphere's image circle (core.sphere_outline): fitted to a mask, found in
+"""The probe sphere's image circle (core.capture.sphere_outline): fitted to a mask, found in
 the photo itself, a drawn circle snapped to the outline. Synthetic renders with a
 known sphere and light, from tests/test_core_light_probe.py."""
 
@@ -22,8 +22,8 @@ from test_core_light_probe import (
     render_probe_photo,
 )
 
-from brdf_reconstruct.core import light_probe as lp
-from brdf_reconstruct.core import sphere_outline as so
+from brdf_reconstruct.core.capture import light_probe as lp
+from brdf_reconstruct.core.capture import sphere_outline as so
 
 # --- fitted to a mask (detect_sphere) ----------------------------------------------
 

@@ -22,7 +22,7 @@ import datetime as dt
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import sun
+from brdf_reconstruct.core.capture import sun
 
 UTC = dt.UTC
 SPA_WHEN = dt.datetime(2003, 10, 17, 12, 30, 30, tzinfo=dt.timezone(dt.timedelta(hours=-7)))

@@ -1,4 +1,4 @@
-"""core.sun against Blender's Sun Position add-on (to 0.05 degree).
+"""core.capture.sun against Blender's Sun Position add-on (to 0.05 degree).
 
 tests/data/sun_position_addon.json holds positions computed by the add-on's own
 calculation (version, source package and command recorded in the file; made by
@@ -20,7 +20,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import sun
+from brdf_reconstruct.core.capture import sun
 
 DATA = pathlib.Path(__file__).resolve().parent / "data" / "sun_position_addon.json"
 DOC = json.loads(DATA.read_text())
@@ -100,7 +100,7 @@ def test_matches_addon(case):
 def test_difference_is_the_addon_obliquity_term(case):
     # Geometric positions: once the add-on's obliquity error is predicted, what is
     # left is under 0.0002 deg today; 0.002 deg leaves room for small refinements
-    # of core.sun (e.g. delta-T) without hiding a real discrepancy.
+    # of core.capture.sun (e.g. delta-T) without hiding a real discrepancy.
     when = _when(case)
     t = (sun.julian_day(when) - 2451545.0) / 36525.0
     d_eps = np.radians(21.448 / 3600.0 * (1.0 - t))

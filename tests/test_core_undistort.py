@@ -7,15 +7,16 @@ drawn on the pinhole image, at the pinhole pixel (fx n_x + cx, fy n_y + cy).
 That is what a camera with that lens records of a scene whose pinhole image
 is the pattern. Undistortion goes the other way (``img_from_cam``), so a
 correct resampling gives back the pattern on the pinhole grid. Blob centres
-are projections of 3-D points, checked against ``core.colmap``'s Blender
+are projections of 3-D points, checked against ``core.capture.colmap``'s Blender
 projection of the same points.
 """
 
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import colmap as cm
-from brdf_reconstruct.core import undistort as ud
+from brdf_reconstruct.core.capture import cameras as camconv
+from brdf_reconstruct.core.capture import colmap as cm
+from brdf_reconstruct.core.capture import undistort as ud
 
 pycolmap = pytest.importorskip("pycolmap")
 
@@ -37,7 +38,7 @@ MODELS = {
 
 
 def _pinhole(model, params):
-    """(fx, fy, cx, cy) read off the params by hand (independent of core.colmap)."""
+    """(fx, fy, cx, cy) read off the params by hand (independent of core.capture.colmap)."""
     p = list(params)
     if model.startswith(("SIMPLE_", "RADIAL")):
         return p[0], p[0], p[1], p[2]
@@ -75,12 +76,13 @@ def _smooth(px):
 
 
 def _scene(model, params, w=W, h=H):
-    """World points, a pose, and their pinhole pixels from core.colmap's Blender projection."""
-    R, t = cm.look_at([0.4, -5.0, 1.0], [0.1, 0.0, 0.2])
+    """World points, a pose, and their pinhole pixels from
+     the Blender projection (core.capture.cameras)."""
+    R, t = camconv.look_at([0.4, -5.0, 1.0], [0.1, 0.0, 0.2])
     g = np.linspace(-1.0, 1.0, 5)  # spans most of the frame: normalized x to 0.45, y to 0.3
     xyz = np.array([[a, 0.3 * a * b, b] for a in g for b in g]) * [2.2, 1.0, 1.4]
-    intr = cm.blender_intrinsics(*_pinhole(model, params), w, h)
-    px = cm.project_blender(cm.camera_to_world(R, t), intr, xyz)
+    intr = camconv.blender_intrinsics(*_pinhole(model, params), w, h)
+    px = camconv.project_blender(camconv.camera_to_world(R, t), intr, xyz)
     cam = xyz @ R.T + t
     return cam, px
 
@@ -105,7 +107,7 @@ def test_blobs_of_3d_points_land_on_the_pinhole_projection(model):
     params = MODELS[model]
     cam, px = _scene(model, params)
     fx, fy, cx, cy = _pinhole(model, params)
-    # the blobs are drawn at each point's own ray, not from core.colmap's pixels
+    # the blobs are drawn at each point's own ray, not from core.capture.colmap's pixels
     ray_px = np.column_stack(
         [fx * cam[:, 0] / cam[:, 2] + cx, fy * cam[:, 1] / cam[:, 2] + cy]
     )

@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core import database, merl, models
-from brdf_reconstruct.core.fresnel import METALS
+from brdf_reconstruct.core.brdf import database, merl, models
+from brdf_reconstruct.core.brdf.fresnel import METALS
 
 
 @pytest.fixture(scope="module")

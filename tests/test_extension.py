@@ -116,7 +116,7 @@ def test_zip_is_valid_and_bundles_only_this_platform(archive):
     assert manifest["build"]["generated"]["platforms"] == [PLATFORM]
     assert sorted(manifest["wheels"]) == [f"./{w}" for w in wheels]
     assert "__init__.py" in names and "operators/import_colmap.py" in names
-    leaked = ("tests/", "bench/", "docs/", "scripts/", "dist/", ".cache/", ".venv/")
+    leaked = ("tests/", "bench/", "testkit/", "docs/", "scripts/", "dist/", ".cache/", ".venv/")
     assert not [n for n in names if n.startswith(leaked) or "__pycache__/" in n]
 
 
@@ -176,18 +176,19 @@ CHILD = textwrap.dedent(
 @pytest.fixture(scope="module")
 def colmap_model(tmp_path_factory) -> Path:
     pytest.importorskip("pycolmap")
-    from brdf_reconstruct.core import colmap as cm
+    from brdf_reconstruct.core.capture import cameras as camconv
+    from testkit import synthetic
 
     views = [
         ("left.jpg", "PINHOLE", [500, 500, 320, 240], 640, 480,
-         *cm.look_at([3, -1, 1], [0, 0, 0])),
+         *camconv.look_at([3, -1, 1], [0, 0, 0])),
         ("right.jpg", "SIMPLE_PINHOLE", [600, 400, 300], 800, 600,
-         *cm.look_at([-2, -3, 1.5], [0, 0, 0])),
+         *camconv.look_at([-2, -3, 1.5], [0, 0, 0])),
     ]  # fmt: skip
     xyz = np.random.default_rng(0).uniform(-0.5, 0.5, (50, 3))
     model = tmp_path_factory.mktemp("colmap") / "sparse"
     model.mkdir()
-    cm.synthetic_reconstruction(views, xyz).write(str(model))
+    synthetic.synthetic_reconstruction(views, xyz).write(str(model))
     return model
 
 

@@ -73,7 +73,7 @@ def test_built_package_is_valid_and_lean(tmp_path):
     assert "__init__.py" in names
     assert "brdf_addon/__init__.py" in names
     assert "core/__init__.py" in names
-    excluded = (".venv/", ".git/", ".ci/", "tests/", "bench/", "docs/", "__pycache__/")
+    excluded = (".venv/", ".git/", ".ci/", "tests/", "bench/", "testkit/", "docs/", "__pycache__/")
     leaked = [n for n in names if any(n.startswith(e) or f"/{e}" in n for e in excluded)]
     assert not leaked, leaked
     assert not [n for n in names if ".egg-info/" in n]

@@ -6,15 +6,13 @@ the COLMAP -> Mitsuba camera conversion with an off-centre principal point.
 """
 
 import pathlib
-import sys
 
 import numpy as np
 import pytest
 
 pytest.importorskip("mitsuba")
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent / "bench"))
 
-import mitsuba_peer  # noqa: E402
+from testkit import mitsuba_peer  # noqa: E402
 
 try:
     mitsuba_peer.mitsuba()
@@ -37,9 +35,9 @@ def test_tabulation_of_diffuse_and_principled():
 
 
 def _camera(width=64, height=48):
-    from brdf_reconstruct.core import colmap
+    from brdf_reconstruct.core.capture import cameras, colmap
 
-    R, t = colmap.look_at(np.array([3.0, -1.0, 1.0]), np.zeros(3))
+    R, t = cameras.look_at(np.array([3.0, -1.0, 1.0]), np.zeros(3))
     return colmap.ColmapImage(
         image_id=1, name="a.png", camera_id=1, width=width, height=height, fx=70.0, fy=70.0,
         cx=0.4 * width, cy=0.6 * height, camera_model="PINHOLE", distorted=False,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from brdf_reconstruct.core import fresnel, models
+from brdf_reconstruct.core.brdf import fresnel, models
 
 
 def _unit(v):

@@ -13,8 +13,12 @@ def test_core_imports_without_bpy(tmp_path):
         import brdf_reconstruct
         import pkgutil, importlib
         import brdf_reconstruct.core as core
-        for m in pkgutil.iter_modules(core.__path__):
-            importlib.import_module("brdf_reconstruct.core." + m.name)
+        names = [m.name for m in pkgutil.walk_packages(core.__path__, "brdf_reconstruct.core.")]
+        for name in names:
+            importlib.import_module(name)
+        for part in ("brdf", "capture", "method", "bake"):
+            assert f"brdf_reconstruct.core.{part}" in names, names
+        assert len(names) >= 30, names
         assert callable(brdf_reconstruct.register)
         assert "bpy" not in sys.modules, "importing the package pulled in bpy"
         assert "brdf_reconstruct.brdf_addon" not in sys.modules

@@ -35,8 +35,8 @@ import dataclasses
 
 import numpy as np
 
-from . import merl
-from .basis import Basis
+from ..brdf import merl
+from ..brdf.basis import Basis
 from .sampling import acquisition_condition
 
 SIGMA2_GRID = 10.0 ** np.linspace(-14.0, 2.0, 129)  # noise variance, log-relative units^2

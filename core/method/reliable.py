@@ -13,7 +13,7 @@ assumptions keep the trustworthy samples, each stage switchable and counted:
    applied where the brightest sample's normal is far from h (see
    ``ReliableSettings.peak_max_angle``): that maximum is not a specular peak.
 2. **Curvature.** Samples whose |H| exceeds a threshold (radians of normal turn
-   per 10 pixels, see ``core.observations``), or whose H is undefined, go.
+   per 10 pixels, see ``core.method.observations``), or whose H is undefined, go.
 3. **Monotonicity (Eq. 1, after Higo et al. 2010).** Within a region,
    reflectance should not decrease as n.h grows. Per region and channel, an
    isotonic (non-decreasing) fit of ln(rho) against n.h is made and samples
@@ -28,7 +28,7 @@ assumptions keep the trustworthy samples, each stage switchable and counted:
 
 ``reliable_candidates`` runs the stages; ``reconstruct_trials`` then makes the
 paper's several reconstructions from random subsets (Sec. 3.2), each from
-condition-optimal cells (``core.sampling``), seeded.
+condition-optimal cells (``core.method.sampling``), seeded.
 """
 
 from __future__ import annotations
@@ -39,8 +39,9 @@ import time
 import numpy as np
 from scipy.optimize import isotonic_regression
 
-from . import merl, reconstruct, sampling
-from .basis import Basis
+from ..brdf import merl
+from ..brdf.basis import Basis
+from . import reconstruct, sampling
 from .curvature import window_nanmedian3, window_nanmedian3_at
 from .observations import Samples, group_index
 

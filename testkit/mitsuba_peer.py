@@ -4,7 +4,7 @@ A user without our extension could fit a Principled-type BSDF to the same photos
 with a differentiable renderer. This module does that with Mitsuba 3 (CPU
 variant ``llvm_ad_rgb``), from a capture's own files only, and tabulates the
 fitted BSDF on the MERL grid so it is scored exactly like our reconstruction
-(``core.metrics.sphere_error`` / ``brdf_log_rmse``).
+(``core.brdf.metrics.sphere_error`` / ``brdf_log_rmse``).
 
 Dev-only: Mitsuba is in ``requirements-bench.txt``, never a dependency of the
 extension. Needs the LLVM shared library, version >= 17 (Debian 12:
@@ -17,7 +17,7 @@ Set-up (:func:`fit_principled`):
 - Geometry: the capture's ``scan.ply`` (the degraded scan our method also gets),
   loaded as is, so it stays in the COLMAP/Blender world frame, with its vertex
   normals.
-- Cameras: ``sparse/0`` through ``core.colmap``. COLMAP's camera frame is x right,
+- Cameras: ``sparse/0`` through ``core.capture.colmap``. COLMAP's camera frame is x right,
   y down, z forward; Mitsuba's sensor frame is x left, y up, z forward, so the
   sensor's ``to_world`` is COLMAP's camera-to-world times ``diag(-1, -1, 1)``.
   Checked twice (:func:`camera_check`): every camera's Mitsuba rays against
@@ -130,7 +130,7 @@ class Photo:
     path: the EXR. rgb: (H, W, 3) float64 linear radiance, row 0 at the top.
     alpha: (H, W) float64 coverage if the file has an alpha channel, else None
     (used only by the silhouette check, never by the fit). camera: the
-    ``core.colmap.ColmapImage`` of the view. light: (3,) unit world direction
+    ``core.capture.colmap.ColmapImage`` of the view. light: (3,) unit world direction
     towards the light. irradiance: (3,) W/m^2 on a surface facing the light.
     """
 
@@ -169,7 +169,7 @@ def _read_exr(path) -> tuple[np.ndarray, np.ndarray | None]:
 def read_capture(folder) -> Capture:
     """Read ``job.toml`` of a capture folder: the mesh, the COLMAP cameras and the
     photos with their light (``light = [x, y, z]`` entries only)."""
-    from brdf_reconstruct.core import colmap
+    from brdf_reconstruct.core.capture import colmap
 
     folder = pathlib.Path(folder).resolve()
     job = tomllib.loads((folder / "job.toml").read_text())
@@ -377,7 +377,7 @@ def eval_local(bsdf, light: np.ndarray, view: np.ndarray) -> np.ndarray:
 def tabulate(bsdf, chunk: int = 1 << 19) -> np.ndarray:
     """(3, 90, 90, 180) float64 table in 1/sr of a Mitsuba BSDF at the MERL cell
     centres (``merl.cell_directions``), NaN below the horizon."""
-    from brdf_reconstruct.core import merl
+    from brdf_reconstruct.core.brdf import merl
 
     wi, wo = merl.cell_directions()
     valid = np.flatnonzero(merl.valid_cells())
@@ -400,7 +400,7 @@ def check_tabulation(values: dict | None = None) -> dict:
     exact directions: the table's own quantisation error, with the metric's
     nearest-cell lookup and with trilinear interpolation between cell centres.
     """
-    from brdf_reconstruct.core import merl, metrics, render
+    from brdf_reconstruct.core.brdf import merl, metrics, render
 
     mi, _ = mitsuba()
     albedo = np.array([0.2, 0.5, 0.8])
@@ -563,7 +563,7 @@ def main(argv=None) -> int:
     import argparse
     import json
 
-    from brdf_reconstruct.core import merl, metrics
+    from brdf_reconstruct.core.brdf import merl, metrics
 
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument("capture", help="folder with job.toml, scan.ply, sparse/0, photos")

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import merl
-from .basis import Basis
+from ..brdf import merl
+from ..brdf.basis import Basis
 
 N_RANDOM = 500  # candidates tried per greedy addition
 STEPS = (3, 1)  # local-search step sizes in bins

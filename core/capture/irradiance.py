@@ -8,7 +8,7 @@ proportional to E and E_i / E_ref = a_i / a_ref (the unknown albedo cancels).
 
 Divide photo i's linear radiance by ratios[i] (per channel) to bring it to the
 reference photo's irradiance. Radiance should already be on one exposure
-scale (core.exif.exposure_scales).
+scale (core.capture.exif.exposure_scales).
 
 A pixel is used when its cosine is finite and > MIN_COSINE (grazing pixels
 are dominated by normal errors), all its channels are finite, and it is not

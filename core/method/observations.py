@@ -11,7 +11,7 @@ that cannot give a trustworthy rho are removed up front, each reason counted:
 background (outside the mask, or no region), non-finite photo or geometry,
 shadowed (visibility below a level), grazing light or view (n.l or n.v below a
 cosine), and saturated (any channel at or above a clip level). The per-pixel
-image-space curvature (``core.curvature``, in radians of normal turn per
+image-space curvature (``core.method.curvature``, in radians of normal turn per
 ``curvature_span_px`` pixels) rides along for the reliable-region stage,
 computed on the full G-buffer so silhouettes are handled there.
 """
@@ -22,7 +22,8 @@ import dataclasses
 
 import numpy as np
 
-from . import curvature, merl
+from ..brdf import merl
+from . import curvature
 
 REMOVAL_REASONS = ("background", "nonfinite", "shadowed", "grazing", "saturated")
 
@@ -127,7 +128,7 @@ def observe(
     pixels to use. curvature_map: (H, W) the result of :func:`image_curvature` for
     these G-buffers, to reuse it across photos taken from one camera (computed
     here when None). saturated: optional (H, W) bool of pixels at the camera's
-    white level (``core.photo_io.Photo.saturated``, found on the file's own code
+    white level (``core.capture.photo_io.Photo.saturated``, found on the file's own code
     values); they are removed and counted as saturated, like pixels at or above
     ``settings.clip_level``. Raises ValueError for mismatched shapes or a bad light.
     """

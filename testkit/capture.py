@@ -145,7 +145,7 @@ def camera_ring(n_views: int, distance: float = 3.5,
                 elevations_deg=(-10.0, 20.0, 50.0)) -> list[tuple[np.ndarray, np.ndarray]]:
     """COLMAP poses (R_cam_from_world, t) of ``n_views`` cameras spread over rings at
     the given elevations, all looking at the origin from ``distance``."""
-    from brdf_reconstruct.core import colmap
+    from brdf_reconstruct.core.capture import cameras
 
     poses = []
     rings = len(elevations_deg)
@@ -157,7 +157,7 @@ def camera_ring(n_views: int, distance: float = 3.5,
         el = math.radians(elevations_deg[ring])
         centre = distance * np.array([math.cos(el) * math.cos(azimuth),
                                       math.cos(el) * math.sin(azimuth), math.sin(el)])
-        poses.append(colmap.look_at(centre, [0.0, 0.0, 0.0]))
+        poses.append(cameras.look_at(centre, [0.0, 0.0, 0.0]))
     return poses
 
 
@@ -165,13 +165,13 @@ def write_colmap(folder: str | pathlib.Path, poses, width: int, height: int,
                  focal_px: float, points) -> pathlib.Path:
     """Write a binary COLMAP model (PINHOLE cameras, images view000.png ...) of the
     poses, with ``points`` (N, 3) as the sparse 3D points; returns the folder."""
-    from brdf_reconstruct.core import colmap
+    from testkit import synthetic
 
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     views = [(f"view{i:03d}.png", "PINHOLE", [focal_px, focal_px, width / 2, height / 2],
               width, height, R, t) for i, (R, t) in enumerate(poses)]
-    colmap.synthetic_reconstruction(views, points).write(str(folder))
+    synthetic.synthetic_reconstruction(views, points).write(str(folder))
     return folder
 
 
@@ -227,7 +227,7 @@ def build_scene(sparse_folder, resolution=(240, 180), n_views: int = 6, seed: in
     importer. The points set the scene scale the importer derives the cameras'
     clip range from, so they change the G-buffers in the last float digits.
     """
-    from brdf_reconstruct.operators import import_colmap
+    from brdf_reconstruct.brdf_addon import colmap_import
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     _say("loading the ground-truth mesh and degrading it into the scan")
@@ -239,7 +239,7 @@ def build_scene(sparse_folder, resolution=(240, 180), n_views: int = 6, seed: in
         points = co.reshape(-1, 3)[:: max(1, len(co) // 3 // 2000)]
     focal_px = 1.25 * resolution[0] if focal_px is None else focal_px
     sparse = write_colmap(sparse_folder, camera_ring(n_views), *resolution, focal_px, points)
-    return truth, scan, import_colmap.import_cameras(bpy.context.scene, sparse)
+    return truth, scan, colmap_import.import_cameras(bpy.context.scene, sparse)
 
 
 def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
@@ -251,7 +251,7 @@ def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
     distant light), ``truth.binary`` and ``job.toml`` for the batch entry.
     focal_px: default 1.25 x the width, so the object fills the frame alike at
     any resolution. Resets Blender to an empty scene. Returns the job file's path."""
-    from brdf_reconstruct.core import merl
+    from brdf_reconstruct.core.brdf import merl
 
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -285,7 +285,7 @@ def default_subject() -> str:
 def cache_folder(material: str, views: int, lit: int, resolution, seed: int) -> pathlib.Path:
     """Where the benchmarks and the demo keep the capture of these settings
     (``<cache>/captures/<subject>_<material>_...``); see :func:`command`."""
-    from brdf_reconstruct.core import basis
+    from brdf_reconstruct.core.brdf import basis
 
     w, h = resolution
     return (basis.default_cache_dir() / "captures"
@@ -324,7 +324,7 @@ def main(argv=None) -> int:
     """``python bench/capture.py OUT --material NAME ...``: write a capture to OUT."""
     import argparse
 
-    from brdf_reconstruct.core import database
+    from brdf_reconstruct.core.brdf import database
 
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument("out")

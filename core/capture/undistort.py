@@ -7,7 +7,7 @@ a distorted lens only lines up with that pinhole after resampling: each
 output pixel takes the photo's value where its pinhole ray lands in the
 distorted image.
 
-Conventions (as in ``core.colmap``):
+Conventions (as in ``core.capture.colmap``):
 - Pixels: COLMAP's continuous (x, y), x right, y down, the image covering
   [0, W] x [0, H]; pixel (0, 0) has its centre at (0.5, 0.5), so array
   index (row, col) = (y - 0.5, x - 0.5).
@@ -26,8 +26,8 @@ Conventions (as in ``core.colmap``):
   coefficients (on normalized coordinates) are unchanged, and the output
   has the photo's size.
 
-`is_distorted` and `pinhole_params` are ``core.colmap``'s, re-exported.
-pycolmap is imported on first use, through ``core.colmap``.
+`is_distorted` and `pinhole_params` are ``core.capture.colmap``'s, re-exported.
+pycolmap is imported on first use, through ``core.capture.colmap``.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The scene's geographic frame: where east, north and up are in world space.
 
-core.sun gives the Sun in local east-north-up (ENU: +X east, +Y north, +Z
+core.capture.sun gives the Sun in local east-north-up (ENU: +X east, +Y north, +Z
 up). A scene's world frame need not be z-up (a COLMAP world is arbitrary), so
 the sun direction in world space is ``world_from_enu(...) @ d_enu``.
 
@@ -12,7 +12,7 @@ north offset counter-clockwise about up, seen from above; for up = +Z,
 The scene's up, when the world is not z-up, is estimated from the cameras
 (`up_from_cameras`, `estimate_up`). Camera rotations are in Blender's convention (camera
 looks down its -z, +y up in the image, +x right), i.e. the (3, 3) part of
-``core.colmap.camera_to_world``.
+``core.capture.cameras.camera_to_world``.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def world_from_enu(up=(0.0, 0.0, 1.0), north_offset_rad: float = 0.0, north_hint
         +Y is used instead, and +X if +Y is parallel too.
 
     east = north x up, so the matrix is right-handed (det +1) and maps a
-    direction in ENU (e.g. ``core.sun.sun_direction``) to world space:
+    direction in ENU (e.g. ``core.capture.sun.sun_direction``) to world space:
     ``d_world = world_from_enu(...) @ d_enu``. For up = +Z and the default
     hint this is the rotation by north_offset_rad about +Z.
     """

@@ -1,46 +1,4 @@
-"""Fit a tabulated BRDF with lobes Cycles renders exactly: the bake behind the material.
-
-Cycles has no tabulated-BRDF closure (METHOD.md §8), so for relighting under any
-light the table is baked into a small model made of standard Cycles closures,
-added together (``brdf_addon/material.py`` builds the nodes)::
-
-    rho(l, v) = kd / pi
-              + sum_k [A_k + B_k (1 - l.h)^5] D(h; a_k) G2(l, v; a_k) / (4 cos_l cos_v)
-              + C D_v(h; sigma) G_v(l, v) / (4 cos_l cos_v)
-
-- ``kd``: RGB >= 0, a Diffuse BSDF (roughness 0 = Lambert) with Color kd.
-- ``A_k``: RGB >= 0, a Glossy BSDF (distribution GGX or Beckmann, per lobe),
-  Color A_k: Cycles multiplies the closure by the colour (not clamped) and
-  applies no Fresnel.
-- ``B_k``: grey, in [0, 1], a Metallic BSDF (Fresnel "F82", Base Color black,
-  Edge Tint white, so F = (1 - l.h)^5, Schlick with F0 = 0) behind a Mix Shader
-  with factor B_k: the rise to white at grazing angles that every Fresnel has.
-- ``D``: GGX ``a^2 / (pi (1 - c^2 + a^2 c^2)^2)`` or Beckmann
-  ``exp(-tan^2 / a^2) / (pi a^2 c^4)``, c = n.h.
-- ``G2``: height-correlated Smith, ``1 / (1 + Lambda_l + Lambda_v)``; GGX:
-  ``Lambda = (sqrt(1 + a^2 tan^2) - 1) / 2``; Beckmann: Cycles' rational
-  approximation in ``x = 1 / (a tan)``, ``(1 - 1.259 x + 0.396 x^2) /
-  (3.535 x + 2.181 x^2)``, 0 for ``x >= 1.6`` (Walter et al. 2007).
-- ``a_k = roughness_k^2`` with roughness clamped to [0, 1] by Cycles; here
-  ``a`` in [ALPHA_MIN, 1].
-- ``C``: RGB >= 0, a Sheen BSDF with distribution "Ashikhmin" (Cycles' velvet
-  closure) and Roughness sigma in [SIGMA_MIN, 1]: ``D_v = exp(-cot^2 / sigma^2) /
-  (pi sigma^2 sin^4)`` of the half vector's angle, ``G_v = min(1, 2 (n.h / l.h)
-  cos_v, 2 (n.h / l.h) cos_l)``; zero when ``n.h >= 1 - 1e-5``. It gives the
-  rim brightening of cloth that no GGX lobe can.
-
-This is Cycles' ``bsdf_microfacet_eval<GGX or BECKMANN>`` (it returns the BRDF
-times the light cosine) after ``bsdf_microfacet_ggx_setup`` /
-``..._beckmann_setup`` (``energy_scale = 1``: the energy compensation is only
-for "Multiscatter GGX"), with Fresnel NONE for the
-Glossy BSDF and ``fresnel_f82`` with ``B = 0`` (white tint) for the Metallic
-BSDF, and ``alpha = sqr(saturate(Roughness))`` in the SVM closure node; the
-velvet is ``bsdf_ashikhmin_velvet_eval`` with ``sigma = max(saturate(Roughness),
-0.01)`` (Cycles ``kernel/closure/bsdf_microfacet.h``, ``bsdf_util.h``,
-``bsdf_ashikhmin_velvet.h``, ``kernel/svm/closure.h``, Blender 4.x-5.x).
-``tests/test_blender_material.py`` checks it against Cycles renders. The
-Principled BSDF is not the target: it scales its diffuse base by the specular
-layer's albedo from Cycles' lookup tables, which numpy cannot reproduce exactly.
+"""Fit the bake's lobe model (:mod:`.lobes`) to a tabulated BRDF.
 
 The fit (:func:`fit`) minimises, over a fixed subsample of the measured cells,
 the residual ``sqrt(c) [ln(c rho_model + eps) - ln(c rho_table + eps)]`` with
@@ -65,20 +23,26 @@ import time
 
 import numpy as np
 
-from . import merl, metrics, render
+from ..brdf import merl, metrics, render
+from .lobes import (
+    ALPHA_MAX,
+    ALPHA_MIN,
+    DISTRIBUTIONS,
+    INV_PI,
+    MAX_LOBES,
+    SIGMA_MAX,
+    SIGMA_MIN,
+    Geometry,
+    LobeParams,
+    tabulate,
+)
 
-ALPHA_MIN = 1e-3  # roughness 0.032; MERL's first theta_h bins resolve lobes this sharp
-ALPHA_MAX = 1.0  # roughness 1, Cycles' clamp
-SIGMA_MIN = 0.05  # velvet width; sharper ones only light the last degree before grazing
-SIGMA_MAX = 1.0
 EPS_REL = 0.1
 ALPHA_GRID = np.geomspace(ALPHA_MIN, ALPHA_MAX, 22)
-DISTRIBUTIONS = ("ggx", "beckmann")  # the Glossy BSDF's "GGX" and "BECKMANN"
 SIGMA_GRID = np.geomspace(0.1, SIGMA_MAX, 5)
 N_POLISH = 3  # best grid starts, polished together for SHORT_POLISH steps
 SHORT_POLISH = 12
 LONG_POLISH = 40  # steps for the best of them
-MAX_LOBES = 2
 # Lights (camera space, +z to the viewer) for the fit's own sphere errors:
 # the reference light, a head-on light and two near-grazing ones.
 ERROR_LIGHTS = np.array([
@@ -87,91 +51,8 @@ ERROR_LIGHTS = np.array([
     [-0.8, 0.2, 0.5657],
     [0.3, -0.9, 0.3162],
 ])
-_INV_PI = 1.0 / np.pi
 _FIT_STRIDE = (1, 4, 8)  # subsample of the (theta_h, theta_d, phi_d) bins: ~33k cells
 _MIN_CELLS = 2000
-_VELVET_COS_H_MAX = 1.0 - 1e-5  # Cycles returns 0 above this n.h (and for l.h <= 1e-5)
-_SINGULAR_ALPHA2 = 2e-10  # Cycles' BSDF_ROUGHNESS_SQ_THRESH: smoother lobes are not evaluated
-
-
-# ----------------------------------------------------------------------------- params
-@dataclasses.dataclass(frozen=True, eq=False)  # arrays: no element-wise ==
-class LobeParams:
-    """Parameters of the Cycles-renderable model (see the module docstring).
-
-    diffuse: (3,) Lambert albedo kd. colors: (K, 3) Glossy colours A_k.
-    grazing: (K,) Fresnel rise B_k in [0, 1]. alphas: (K,) microfacet widths
-    a_k = roughness^2 in [ALPHA_MIN, 1]. sheen: (3,) velvet colour C (zeros
-    for none). sheen_sigma: velvet roughness in [SIGMA_MIN, 1]. float64, finite.
-    distributions: (K,) "ggx" or "beckmann" per lobe (default all GGX).
-    """
-
-    diffuse: np.ndarray
-    colors: np.ndarray
-    grazing: np.ndarray
-    alphas: np.ndarray
-    sheen: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
-    sheen_sigma: float = 0.5
-    distributions: tuple = ()
-
-    def __post_init__(self):
-        if not self.distributions:
-            object.__setattr__(self, "distributions", ("ggx",) * len(self.alphas))
-        for d in self.distributions:
-            if d not in DISTRIBUTIONS:
-                raise ValueError(f"distribution must be one of {DISTRIBUTIONS}, got {d!r}")
-        if len(self.distributions) != len(self.alphas):
-            raise ValueError("one distribution per lobe is needed")
-
-    @property
-    def roughness(self) -> np.ndarray:
-        """(K,) the microfacet nodes' Roughness input, sqrt(alpha)."""
-        return np.sqrt(self.alphas)
-
-    def to_dict(self) -> dict:
-        """Plain JSON-able dict (floats and lists of floats)."""
-        return {
-            "model": "lambert+microfacet_schlick+velvet",
-            "diffuse": [float(x) for x in self.diffuse],
-            "lobes": [
-                {"distribution": d, "color": [float(x) for x in c], "grazing": float(b),
-                 "alpha": float(a), "roughness": float(np.sqrt(a))}
-                for d, c, b, a in zip(self.distributions, self.colors, self.grazing,
-                                      self.alphas, strict=True)
-            ],
-            "sheen": {"color": [float(x) for x in self.sheen], "sigma": float(self.sheen_sigma)},
-        }
-
-    @classmethod
-    def build(cls, diffuse=(0.0, 0.0, 0.0), lobes=(), sheen=(0.0, 0.0, 0.0),
-              sigma: float = 0.5) -> LobeParams:
-        """From plain values; lobes: (distribution, (3,) color, grazing, alpha) tuples."""
-        return cls(
-            diffuse=np.array(diffuse, dtype=np.float64),
-            colors=np.array([lobe[1] for lobe in lobes], dtype=np.float64).reshape(-1, 3),
-            grazing=np.array([lobe[2] for lobe in lobes], dtype=np.float64),
-            alphas=np.array([lobe[3] for lobe in lobes], dtype=np.float64),
-            sheen=np.array(sheen, dtype=np.float64),
-            sheen_sigma=sigma,
-            distributions=tuple(lobe[0] for lobe in lobes),
-        )
-
-    @classmethod
-    def from_dict(cls, d: dict) -> LobeParams:
-        """Inverse of :meth:`to_dict`. Optional: ``grazing`` (0), ``distribution``
-        ("ggx"), ``sheen`` (none); a lobe may give ``roughness`` instead of ``alpha``."""
-        lobes = d.get("lobes", [])
-        alphas = [lobe["alpha"] if "alpha" in lobe else lobe["roughness"] ** 2 for lobe in lobes]
-        sheen = d.get("sheen") or {"color": [0.0, 0.0, 0.0], "sigma": 0.5}
-        return cls(
-            diffuse=np.asarray(d["diffuse"], dtype=np.float64).reshape(3),
-            colors=np.asarray([lobe["color"] for lobe in lobes], dtype=np.float64).reshape(-1, 3),
-            grazing=np.asarray([lobe.get("grazing", 0.0) for lobe in lobes], dtype=np.float64),
-            alphas=np.asarray(alphas, dtype=np.float64).reshape(-1),
-            sheen=np.asarray(sheen["color"], dtype=np.float64).reshape(3),
-            sheen_sigma=float(sheen["sigma"]),
-            distributions=tuple(str(lobe.get("distribution", "ggx")) for lobe in lobes),
-        )
 
 
 @dataclasses.dataclass(frozen=True, eq=False)  # arrays: no element-wise ==
@@ -191,159 +72,6 @@ class LobeFit:
     def to_json(self) -> str:
         return json.dumps({"params": self.params.to_dict(), "errors": self.errors,
                            "info": self.info}, sort_keys=True)
-
-
-# ------------------------------------------------------------------------- evaluation
-class _Geometry:
-    """Cosines of local-frame direction pairs (N,) above the horizon."""
-
-    def __init__(self, l, v):
-        self.cos_l = l[:, 2]
-        self.cos_v = v[:, 2]
-        h = l + v
-        norm = np.linalg.norm(h, axis=1)
-        ok = norm > 0.0
-        self.cos_h = np.clip(np.divide(h[:, 2], norm, out=np.ones_like(norm), where=ok), 0.0, 1.0)
-        self.cos_d = np.clip(np.divide(np.einsum("ij,ij->i", l, h), norm,
-                                       out=np.zeros_like(norm), where=ok), 0.0, 1.0)
-        self.schlick = (1.0 - self.cos_d) ** 5
-
-    def ggx(self, alpha):
-        """D G2 / (4 cos_l cos_v) of a GGX lobe of width alpha."""
-        a2 = alpha * alpha
-        c2 = np.minimum(self.cos_h * self.cos_h, 1.0)
-        t = (1.0 - c2) + a2 * c2
-        d = a2 * _INV_PI / (t * t)
-        # 4 cos_l cos_v (1 + Lambda_l + Lambda_v) = 2 (cos_v mu_l + cos_l mu_v) with
-        # mu = cos sqrt(1 + a^2 tan^2) = sqrt(cos^2 + a^2 sin^2): no division by a cosine.
-        cl, cv = self.cos_l, self.cos_v
-        mu_l = np.sqrt(cl * cl + a2 * (1.0 - cl * cl))
-        mu_v = np.sqrt(cv * cv + a2 * (1.0 - cv * cv))
-        return d * 0.5 / (cv * mu_l + cl * mu_v)
-
-    def ggx_dlog(self, alpha):
-        """d ggx(alpha) / d ln(alpha)."""
-        a2 = alpha * alpha
-        c2 = np.minimum(self.cos_h * self.cos_h, 1.0)
-        t = (1.0 - c2) + a2 * c2
-        cl, cv = self.cos_l, self.cos_v
-        s_l, s_v = 1.0 - cl * cl, 1.0 - cv * cv
-        mu_l = np.sqrt(cl * cl + a2 * s_l)
-        mu_v = np.sqrt(cv * cv + a2 * s_v)
-        den = cv * mu_l + cl * mu_v
-        shape = a2 * _INV_PI / (t * t) * 0.5 / den
-        dlog_d = 2.0 - 4.0 * a2 * c2 / t
-        dlog_v = -(cv * a2 * s_l / mu_l + cl * a2 * s_v / mu_v) / den
-        return shape * (dlog_d + dlog_v)
-
-    def beckmann(self, alpha):
-        """D G2 / (4 cos_l cos_v) of a Beckmann lobe of width alpha (Cycles' Lambda)."""
-        return self._beckmann(alpha, derivative=False)
-
-    def beckmann_dlog(self, alpha):
-        """d beckmann(alpha) / d ln(alpha)."""
-        return self._beckmann(alpha, derivative=True)
-
-    def _beckmann(self, alpha, derivative):
-        a2 = alpha * alpha
-        c2 = np.clip(self.cos_h * self.cos_h, 1e-300, 1.0)
-        tan2 = (1.0 - c2) / c2
-        d = np.exp(-tan2 / a2) / (np.pi * a2 * c2 * c2)
-        lam, dlam = [], []
-        for cos in (self.cos_l, self.cos_v):
-            t2 = a2 * np.maximum(1.0 / (cos * cos) - 1.0, 0.0)  # (a tan)^2
-            zero = t2 < 0.39  # x = 1 / (a tan) > 1.6: Lambda = 0 (Cycles)
-            x = 1.0 / np.sqrt(np.where(zero, 1.0, t2))
-            num = (0.396 * x - 1.259) * x + 1.0
-            den = (2.181 * x + 3.535) * x
-            lam.append(np.where(zero, 0.0, num / den))
-            if derivative:  # dx / d ln(alpha) = -x
-                dl_dx = ((0.792 * x - 1.259) * den - num * (4.362 * x + 3.535)) / (den * den)
-                dlam.append(np.where(zero, 0.0, -x * dl_dx))
-        g2 = 1.0 / (1.0 + lam[0] + lam[1])
-        shape = d * g2 / (4.0 * self.cos_l * self.cos_v)
-        if not derivative:
-            return shape
-        return shape * (2.0 * tan2 / a2 - 2.0 - (dlam[0] + dlam[1]) * g2)
-
-    def microfacet(self, dist, alpha):
-        return self.ggx(alpha) if dist == "ggx" else self.beckmann(alpha)
-
-    def microfacet_dlog(self, dist, alpha):
-        return self.ggx_dlog(alpha) if dist == "ggx" else self.beckmann_dlog(alpha)
-
-    def _velvet_parts(self):
-        if getattr(self, "_velvet_cache", None) is not None:
-            return self._velvet_cache
-        ok = (self.cos_h < _VELVET_COS_H_MAX) & (self.cos_d > 1e-5)
-        ratio = np.maximum(self.cos_h / np.maximum(self.cos_d, 1e-5), 1e-5)
-        g = np.minimum(1.0, 2.0 * ratio * np.minimum(self.cos_l, self.cos_v))
-        sin2 = np.where(ok, 1.0 - self.cos_h * self.cos_h, 1.0)
-        cot2 = self.cos_h * self.cos_h / sin2
-        scale = np.where(ok, g * _INV_PI / (sin2 * sin2 * 4.0 * self.cos_l * self.cos_v), 0.0)
-        self._velvet_cache = (cot2, scale)  # independent of sigma: computed once
-        return self._velvet_cache
-
-    def velvet(self, sigma):
-        """D_v G_v / (4 cos_l cos_v) of Cycles' Ashikhmin velvet of roughness sigma."""
-        cot2, scale = self._velvet_parts()
-        inv = 1.0 / (sigma * sigma)
-        return np.exp(-cot2 * inv) * inv * scale
-
-    def velvet_dlog(self, sigma):
-        """d velvet(sigma) / d ln(sigma)."""
-        cot2, scale = self._velvet_parts()
-        inv = 1.0 / (sigma * sigma)
-        return np.exp(-cot2 * inv) * inv * scale * (2.0 * cot2 * inv - 2.0)
-
-
-def _as_params(params) -> LobeParams:
-    if isinstance(params, LobeFit):
-        return params.params
-    if isinstance(params, dict):
-        return LobeParams.from_dict(params)
-    return params
-
-
-def evaluate(params, l: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """BRDF of the model, i.e. what Cycles renders, at local-frame direction pairs.
-
-    params: :class:`LobeParams` (or its dict, or a :class:`LobeFit`).
-    l, v: (N, 3) unit light and view directions, local frame (normal +z), any
-    float dtype. Returns rho (N, 3) float64 in 1/sr (no cosine), 0 where
-    ``l_z <= 0`` or ``v_z <= 0``.
-    """
-    p = _as_params(params)
-    l = np.asarray(l, dtype=np.float64).reshape(-1, 3)
-    v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
-    if l.shape != v.shape:
-        raise ValueError(f"l and v must have the same shape, got {l.shape} and {v.shape}")
-    above = (l[:, 2] > 0.0) & (v[:, 2] > 0.0)
-    out = np.zeros((len(l), 3))
-    if not above.any():
-        return out
-    g = _Geometry(l[above], v[above])
-    rho = np.broadcast_to(p.diffuse * _INV_PI, (len(g.cos_l), 3)).copy()
-    for dist, color, grazing, alpha in zip(p.distributions, p.colors, p.grazing, p.alphas,
-                                           strict=True):
-        alpha = min(float(alpha), 1.0)  # Cycles: alpha = saturate(roughness)^2
-        if alpha * alpha <= _SINGULAR_ALPHA2:  # Cycles treats it as a mirror: no light eval
-            continue
-        rho += g.microfacet(dist, alpha)[:, None] * (color + grazing * g.schlick[:, None])
-    if np.any(p.sheen != 0.0):
-        rho += g.velvet(float(np.clip(p.sheen_sigma, 0.01, 1.0)))[:, None] * p.sheen
-    out[above] = rho
-    return out
-
-
-def tabulate(params) -> np.ndarray:
-    """The model on the MERL grid: (3, 90, 90, 180) float64 at the cell centres,
-    NaN below the horizon (like :func:`database.make_table`)."""
-    wi, wo = merl.cell_directions()
-    valid = merl.valid_cells()
-    table = np.full((3, merl.N_CELLS), np.nan)
-    table[:, valid] = evaluate(params, wi[valid], wo[valid]).T
-    return table.reshape(3, *merl.SHAPE)
 
 
 # ----------------------------------------------------------------------------- fitting
@@ -447,7 +175,7 @@ class _Problem:
             return cached[1]
         kd, colors, grazing, sheen, alphas, sigma = self.unpack(x)
         shapes = [self.geo.microfacet(d, a) for d, a in zip(self.dists, alphas, strict=True)]
-        m = np.broadcast_to(kd * _INV_PI, self.target.shape).copy()
+        m = np.broadcast_to(kd * INV_PI, self.target.shape).copy()
         for s, a, b in zip(shapes, colors, grazing, strict=True):
             m += s[:, None] * (a + b * self.geo.schlick[:, None])
         velvet = self.geo.velvet(sigma) if self.sheen else None
@@ -473,7 +201,7 @@ class _Problem:
         grad = np.zeros(self.n_par)
         r = r.reshape(-1, 3)
         for ch in range(3):
-            cols = [np.full(len(m), _INV_PI), *shapes, *(s * geo.schlick for s in shapes)]
+            cols = [np.full(len(m), INV_PI), *shapes, *(s * geo.schlick for s in shapes)]
             idx = [ch, *(3 + 3 * i + ch for i in range(k)), *(3 + 3 * k + i for i in range(k))]
             if self.sheen:
                 cols.append(velvet)
@@ -516,7 +244,7 @@ def _nnls_from_gram(gram, rhs):
     return best, best_val
 
 
-def _grid_starts(geo: _Geometry, rho: np.ndarray, n_lobes: int, sheen: bool):
+def _grid_starts(geo: Geometry, rho: np.ndarray, n_lobes: int, sheen: bool):
     """Starting points: every set of ``n_lobes`` (distribution, width) from
     DISTRIBUTIONS x ALPHA_GRID (and each SIGMA_GRID velvet width), colours solved per
     channel in closed form on the linearised residual. Returns the best N_POLISH as
@@ -527,7 +255,7 @@ def _grid_starts(geo: _Geometry, rho: np.ndarray, n_lobes: int, sheen: bool):
     n_l = len(lobes)
     sigmas = SIGMA_GRID if sheen else np.zeros(0)
     micro = np.stack([geo.microfacet(d, a) for d, a in lobes], axis=1)  # (N, L)
-    columns = [np.full((len(micro), 1), _INV_PI), micro, micro * geo.schlick[:, None]]
+    columns = [np.full((len(micro), 1), INV_PI), micro, micro * geo.schlick[:, None]]
     columns += [np.stack([geo.velvet(s) for s in sigmas], axis=1)] if sheen else []
     basis = np.concatenate(columns, axis=1)
     # Linearised log residual: sqrt(c) c (rho_m - rho_t) / (c rho_t + eps).
@@ -608,7 +336,7 @@ def _polish(problem: _Problem, x0, max_iter: int):
 def fit(table, n_lobes: int = 2, sheen: bool = True, errors: bool = True) -> LobeFit:
     """Fit Lambert + ``n_lobes`` microfacet lobes (+ a velvet sheen) to a table.
 
-    table: (3, 90, 90, 180) (core.merl layout) or (90, 90, 180, 3), any float
+    table: (3, 90, 90, 180) (core.brdf.merl layout) or (90, 90, 180, 3), any float
     dtype, BRDF in 1/sr; NaN, Inf and negative cells count as unmeasured and are
     ignored. n_lobes: 0, 1 or 2. sheen: fit the velvet lobe too. errors: also
     compute :func:`fit_errors` (about 1.5 s; without, ``errors`` holds only
@@ -624,7 +352,7 @@ def fit(table, n_lobes: int = 2, sheen: bool = True, errors: bool = True) -> Lob
     idx = _fit_cells(t)
     l, v = merl.dirs_from_half_diff(*merl.angles_from_cells(merl.cells_from_linear(idx)))
     rho = t.reshape(3, -1)[:, idx].T
-    geo = _Geometry(l, v)
+    geo = Geometry(l, v)
     if not np.any(rho > 0.0):  # black: nothing to fit, and log space has no scale
         problem = _Problem(geo, rho, ("ggx",) * n_lobes, sheen)
         best_x = np.clip(np.zeros(problem.n_par), problem.lower, problem.upper)

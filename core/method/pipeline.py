@@ -1,10 +1,10 @@
 """The method end to end on arrays: photos + G-buffers -> one BRDF table per region.
 
 This is Ono et al. (2017) Fig. 2 after the geometry exists: observations
-(``core.observations``), the reliable region (Sec. 3.1, ``core.reliable``),
+(``core.method.observations``), the reliable region (Sec. 3.1, ``core.method.reliable``),
 random-subset reconstructions from condition-optimal samples (Sec. 3.2,
-``core.reliable.reconstruct_trials``) and selection by the KL divergence of
-rendered against photographed intensities (``core.selection``, the fast numpy
+``core.method.reliable.reconstruct_trials``) and selection by the KL divergence of
+rendered against photographed intensities (``core.method.selection``, the fast numpy
 path). It knows nothing of Blender: the operators gather the arrays (photos
 read from files, G-buffers rendered by Cycles) and write the result back.
 
@@ -26,8 +26,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ..brdf.basis import Basis
 from . import observations, reliable, selection
-from .basis import Basis
 
 
 class Cancelled(Exception):

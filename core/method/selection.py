@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import merl, render
+from ..brdf import merl, render
 from .kl import kl_divergence
 
 AGGREGATES = ("mean", "sum")

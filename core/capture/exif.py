@@ -78,7 +78,7 @@ class CaptureTime(NamedTuple):
 
     when: the capture instant. Timezone-aware (tzinfo = the EXIF offset) if
         has_offset, else naive local camera time, which the caller must pair
-        with a UTC offset asked from the user (core.sun rejects naive times).
+        with a UTC offset asked from the user (core.capture.sun rejects naive times).
     has_offset: True when the metadata gave the UTC offset.
     """
 
@@ -324,7 +324,7 @@ def _dms_degrees(value) -> float | None:
 def gps_position(metadata: dict) -> tuple[float, float] | None:
     """(latitude_deg, longitude_deg) of the photo from its GPS tags, or None.
 
-    Degrees north and east (south and west negative), as core.sun takes them.
+    Degrees north and east (south and west negative), as core.capture.sun takes them.
     ``GPS:Latitude`` / ``GPS:Longitude`` are (degrees, minutes, seconds); the
     refs ``GPS:LatitudeRef`` ("N"/"S") and ``GPS:LongitudeRef`` ("E"/"W") are
     required (a value without its hemisphere is not guessed). None when a tag

@@ -15,7 +15,8 @@ import dataclasses
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from . import render
+from brdf_reconstruct.core.brdf import render
+from brdf_reconstruct.core.capture.cameras import check_pose
 
 CAMERA_DISTANCE = 1e6  # orthographic camera emulated by a far camera centre on +z
 
@@ -85,3 +86,50 @@ def normal_angle_error(a: GBuffer, b: GBuffer) -> np.ndarray:
 
 
 LIGHTS = np.array([[0.5, 0.3, 0.81], [-0.6, 0.2, 0.77], [0.1, -0.7, 0.71], [0.0, 0.0, 1.0]])
+
+
+def synthetic_reconstruction(views, xyz, rgb=None):
+    """A pycolmap.Reconstruction with the given cameras and points (for tests and demos).
+
+    views: iterable of (name, camera_model, params, width, height,
+        R_cam_from_world, t), one camera and one image per view; params in
+        the model's COLMAP order (e.g. PINHOLE: fx, fy, cx, cy).
+    xyz: (N, 3) world points. Each point is observed by every view that sees
+        it in front of the camera and inside the image; the 2D observation is
+        COLMAP's own projection (``Camera.img_from_cam``). Points seen by no
+        view are kept without a track.
+    rgb: optional (N, 3) uint8 point colours (default black).
+    Write the result with ``.write(dir)`` (binary) or ``.write_text(dir)``.
+    """
+    import pycolmap
+
+    pts = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
+    colours = np.zeros((len(pts), 3), np.uint8) if rgb is None else np.asarray(rgb, np.uint8)
+    rec = pycolmap.Reconstruction()
+    tracks = [[] for _ in range(len(pts))]
+    for k, (name, model, params, width, height, R, t) in enumerate(views, start=1):
+        camera = pycolmap.Camera.create_from_model_name(k, model, 1.0, int(width), int(height))
+        camera.params = np.asarray(params, dtype=np.float64)
+        rec.add_camera_with_trivial_rig(camera)
+        R, t = check_pose(R, t)
+        cam_pts = pts @ R.T + t
+        uv = camera.img_from_cam(cam_pts, check_cheirality=False)
+        seen = np.flatnonzero(
+            (cam_pts[:, 2] > 0)
+            & (uv[:, 0] >= 0)
+            & (uv[:, 0] <= width)
+            & (uv[:, 1] >= 0)
+            & (uv[:, 1] <= height)
+        )
+        image = pycolmap.Image(
+            name=name, keypoints=uv[seen].reshape(-1, 2), camera_id=k, image_id=k
+        )
+        pose = pycolmap.Rigid3d(pycolmap.Rotation3d(R), t)
+        rec.add_image_with_trivial_frame(image, pose)
+        for idx2d, j in enumerate(seen):
+            tracks[j].append((k, idx2d))
+    for j, track in enumerate(tracks):
+        elements = [pycolmap.TrackElement(image_id, idx2d) for image_id, idx2d in track]
+        # add_point3D also links each image's 2D point to the new 3D point
+        rec.add_point3D(pts[j], pycolmap.Track(elements), colours[j])
+    return rec

@@ -15,7 +15,7 @@ import os
 
 import numpy as np
 
-from . import merl
+from ..brdf import merl
 
 
 def srgb_encode(x: np.ndarray) -> np.ndarray:

@@ -1,0 +1,1 @@
+"""Tabulated BRDFs: MERL tables, analytic models, the database, the PCA basis, shading, metrics."""

@@ -1,0 +1,1 @@
+"""Real captures: photo files, EXIF, undistortion, COLMAP cameras, scene frame, sun, probes."""

@@ -1,0 +1,1 @@
+"""The method: observations, reliable region, sampling, reconstruction, KL selection, pipeline."""
