@@ -15,9 +15,6 @@ the photo's irradiance. Everything temporary is removed afterwards.
 
 from __future__ import annotations
 
-import os
-import tempfile
-
 import bpy
 import numpy as np
 from mathutils import Vector
@@ -26,6 +23,7 @@ from ..core.bake import fitting
 from ..core.capture import photo_io
 from ..core.method import kl as kl_module
 from ..core.method import pipeline, selection
+from .scratch_scene import ScratchScene, configure_cycles, float_exr_output
 
 _NAME = "BRDF_KL"
 
@@ -34,19 +32,15 @@ def render_candidate(obj, material, camera, light, irradiance, resolution, sampl
                      bounces: int = 0, device: str = "CPU", path=None) -> np.ndarray:
     """(H, W, 3) linear radiance: Cycles render of ``obj`` with ``material`` on every
     slot, seen by ``camera``, under a distant light (world direction ``light``,
-    irradiance scalar or RGB W/m^2). Temporary data only; ``path``: also keep the
-    render there as a float EXR."""
+    irradiance scalar or RGB W/m^2) in a :class:`ScratchScene`; ``path``: also keep
+    the render there as a float EXR."""
     width, height = resolution
     irradiance = np.broadcast_to(np.asarray(irradiance, dtype=np.float64), (3,))
-    scene = bpy.data.scenes.new(_NAME)
-    made = {"objects": [], "lights": [], "meshes": []}
-    tmp = tempfile.mkdtemp(prefix="brdf_kl_")
-    try:
-        copy = obj.copy()
-        made["objects"].append(copy)
+    with ScratchScene(_NAME) as scratch:
+        scene = scratch.scene
+        copy = scratch.track(bpy.data.objects, obj.copy())
         if not copy.material_slots:  # a slot needs the mesh: give the copy its own
-            copy.data = obj.data.copy()
-            made["meshes"].append(copy.data)
+            copy.data = scratch.track(bpy.data.meshes, obj.data.copy())
             copy.data.materials.append(material)
         for slot in copy.material_slots:  # object-linked: the user's mesh keeps its own
             slot.link = "OBJECT"
@@ -54,47 +48,23 @@ def render_candidate(obj, material, camera, light, irradiance, resolution, sampl
         scene.collection.objects.link(copy)
         scene.collection.objects.link(camera)
         scene.camera = camera
-        sun_data = bpy.data.lights.new(_NAME, "SUN")
-        made["lights"].append(sun_data)
+        sun_data = scratch.new(bpy.data.lights, _NAME, "SUN")
         peak = float(irradiance.max())
         sun_data.energy = peak
         sun_data.color = tuple(irradiance / peak)
         sun_data.angle = 0.0
-        sun = bpy.data.objects.new(_NAME, sun_data)
-        made["objects"].append(sun)
+        sun = scratch.new(bpy.data.objects, _NAME, sun_data)
         scene.collection.objects.link(sun)
         sun.rotation_mode = "QUATERNION"
         sun.rotation_quaternion = Vector((0, 0, 1)).rotation_difference(Vector(tuple(light)))
+        configure_cycles(scene, samples, device=device, bounces=bounces)
         r = scene.render
-        r.engine = "CYCLES"
         r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
         ctx = bpy.context.scene.render
         r.pixel_aspect_x, r.pixel_aspect_y = ctx.pixel_aspect_x, ctx.pixel_aspect_y
         r.film_transparent = True
-        scene.cycles.samples = samples
-        scene.cycles.use_denoising = False
-        scene.cycles.use_adaptive_sampling = False
-        scene.cycles.max_bounces = bounces
-        scene.cycles.device = device
-        scene.view_settings.view_transform = "Standard"
-        r.image_settings.file_format = "OPEN_EXR"
-        r.image_settings.color_depth = "32"
-        path = os.fspath(path) if path is not None else os.path.join(tmp, "kl.exr")
-        r.filepath = path
-        with bpy.context.temp_override(scene=scene):
-            bpy.ops.render.render(write_still=True, scene=scene.name)
-        return photo_io.read_photo(path)
-    finally:
-        for o in made["objects"]:
-            bpy.data.objects.remove(o)
-        for light_data in made["lights"]:
-            bpy.data.lights.remove(light_data)
-        for mesh in made["meshes"]:
-            bpy.data.meshes.remove(mesh)
-        bpy.data.scenes.remove(scene)
-        for f in os.listdir(tmp):
-            os.remove(os.path.join(tmp, f))
-        os.rmdir(tmp)
+        float_exr_output(scene)
+        return photo_io.read_photo(scratch.render(path if path is not None else "kl.exr"))
 
 
 def score_candidate(scene, inputs, region: int, table, samples: int = 16,

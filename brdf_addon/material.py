@@ -17,10 +17,7 @@ shading of the table (:func:`core.brdf.render.shade`) on the analytic sphere nor
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
-import tempfile
 import time
 
 import bpy
@@ -29,6 +26,8 @@ from mathutils import Vector
 
 from ..core.bake import fitting, lobes
 from ..core.brdf import metrics, render
+from ..core.capture import photo_io
+from .scratch_scene import ScratchScene, configure_cycles, float_exr_output
 
 GROUP_NAME = "BRDF Reconstruction"
 _DISTRIBUTION = {"ggx": "GGX", "beckmann": "BECKMANN"}  # lobe_fit -> node enum
@@ -173,51 +172,33 @@ def build_material(name: str, fit, provenance: dict) -> bpy.types.Material:
 
 
 # ------------------------------------------------------------------------- bake error
-class _TemporaryScene:
-    """A scene with a unit sphere wearing ``material``, an orthographic camera
-    looking down -z that frames [-1, 1]^2, a Sun, and a black world; Cycles on the
-    CPU, direct light only, linear float EXR output. Everything it creates is
-    removed on exit, also after an error; the user's scenes and the context scene
-    are not touched. (An existing "Render Result" image keeps showing the last
-    check render, as after any render.)"""
+class _SphereScene:
+    """A :class:`ScratchScene` with a unit sphere wearing ``material``, an
+    orthographic camera looking down -z that frames [-1, 1]^2, a Sun, and a black
+    world; Cycles on the CPU, direct light only, point-sampled pixels, linear float
+    EXR output. Everything it creates is removed on exit, also after an error; the
+    user's scenes and the context scene are not touched."""
 
     def __init__(self, material, resolution: int, samples: int):
         self.material = material
         self.resolution = resolution
         self.samples = samples
-        self.created = []  # (collection, datablock), removed in reverse order
-
-    def _new(self, collection, *args):
-        block = collection.new(*args)
-        self.created.append((collection, block))
-        return block
+        self.scratch = ScratchScene("BRDF bake check", remove_new_images=True)
 
     def __enter__(self):
-        self.images_before = set(bpy.data.images)
-        self.tmp = tempfile.TemporaryDirectory(prefix="brdf_bake_")
+        self.scratch.__enter__()
         try:
             self._build()
         except BaseException:
-            self.__exit__(None, None, None)
+            self.scratch.__exit__(None, None, None)
             raise
         return self
 
     def _build(self):
-        scene = self.scene = self._new(bpy.data.scenes, "BRDF bake check")
-        scene.render.engine = "CYCLES"
-        cyc = scene.cycles
-        cyc.device = "CPU"
-        cyc.samples = self.samples
-        cyc.use_adaptive_sampling = False
-        cyc.use_denoising = False
-        cyc.max_bounces = 0  # direct light only
-        cyc.seed = 0
-        # Point-sample each pixel centre, like the numpy sphere. A Box filter would
-        # not do: Cycles spreads its samples over the whole pixel whatever the width.
-        cyc.pixel_filter_type = "BLACKMAN_HARRIS"
-        cyc.filter_width = 0.01
-        cyc.sample_clamp_direct = 0.0
-        cyc.sample_clamp_indirect = 0.0
+        scratch = self.scratch
+        scene = scratch.scene
+        # Point-sample each pixel centre, like the numpy sphere.
+        configure_cycles(scene, self.samples, point_sampled=True)
         r = scene.render
         r.resolution_x = r.resolution_y = self.resolution
         r.resolution_percentage = 100
@@ -225,16 +206,9 @@ class _TemporaryScene:
         r.film_transparent = False
         r.use_compositing = False
         r.use_sequencer = False
-        r.image_settings.file_format = "OPEN_EXR"
-        r.image_settings.color_depth = "32"
-        r.image_settings.color_mode = "RGB"
-        r.image_settings.exr_codec = "ZIP"
-        scene.view_settings.view_transform = "Standard"  # not AgX/Filmic
-        scene.view_settings.look = "None"
-        scene.view_settings.exposure = 0.0
-        scene.view_settings.gamma = 1.0
+        float_exr_output(scene, color_mode="RGB")
 
-        world = self._new(bpy.data.worlds, "BRDF bake check")
+        world = scratch.new(bpy.data.worlds, "BRDF bake check")
         if world.node_tree is None:  # before Blender 5.0
             world.use_nodes = True
         bg = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
@@ -245,8 +219,8 @@ class _TemporaryScene:
         # The sphere is one point of radius 1: Cycles intersects points as true
         # spheres with exact normals (a UV sphere's interpolated normals are off by
         # ~1e-4 rad, enough to move a roughness-0.1 highlight's peak by 2 %).
-        nodes_tree = self._new(bpy.data.node_groups, "BRDF bake check sphere",
-                               "GeometryNodeTree")
+        nodes_tree = scratch.new(bpy.data.node_groups, "BRDF bake check sphere",
+                                 "GeometryNodeTree")
         nodes_tree.interface.new_socket("Geometry", in_out="OUTPUT",
                                         socket_type="NodeSocketGeometry")
         points = nodes_tree.nodes.new("GeometryNodePoints")
@@ -258,25 +232,25 @@ class _TemporaryScene:
         output = nodes_tree.nodes.new("NodeGroupOutput")
         nodes_tree.links.new(points.outputs["Points"], set_material.inputs["Geometry"])
         nodes_tree.links.new(set_material.outputs["Geometry"], output.inputs["Geometry"])
-        mesh = self._new(bpy.data.meshes, "BRDF bake check sphere")
-        sphere = self._new(bpy.data.objects, "BRDF bake check sphere", mesh)
+        mesh = scratch.new(bpy.data.meshes, "BRDF bake check sphere")
+        sphere = scratch.new(bpy.data.objects, "BRDF bake check sphere", mesh)
         modifier = sphere.modifiers.new("sphere", "NODES")
         modifier.node_group = nodes_tree
         scene.collection.objects.link(sphere)
 
-        cam_data = self._new(bpy.data.cameras, "BRDF bake check camera")
+        cam_data = scratch.new(bpy.data.cameras, "BRDF bake check camera")
         cam_data.type = "ORTHO"
         cam_data.ortho_scale = 2.0
         cam_data.clip_start = 0.1
         cam_data.clip_end = 100.0
-        camera = self._new(bpy.data.objects, "BRDF bake check camera", cam_data)
+        camera = scratch.new(bpy.data.objects, "BRDF bake check camera", cam_data)
         camera.location = (0.0, 0.0, 10.0)  # identity rotation: looks down -z, +y up
         scene.collection.objects.link(camera)
         scene.camera = camera
 
-        sun_data = self._new(bpy.data.lights, "BRDF bake check sun", "SUN")
+        sun_data = scratch.new(bpy.data.lights, "BRDF bake check sun", "SUN")
         sun_data.angle = 0.0  # a delta light: no penumbra, no blur of sharp lobes
-        self.sun = self._new(bpy.data.objects, "BRDF bake check sun", sun_data)
+        self.sun = scratch.new(bpy.data.objects, "BRDF bake check sun", sun_data)
         scene.collection.objects.link(self.sun)
 
     def render(self, light, irradiance: float) -> np.ndarray:
@@ -286,33 +260,10 @@ class _TemporaryScene:
         self.sun.rotation_mode = "QUATERNION"
         self.sun.rotation_quaternion = Vector(light).normalized().to_track_quat("Z", "Y")
         self.sun.data.energy = irradiance  # Sun strength is irradiance in W/m^2
-        path = os.path.join(self.tmp.name, "render.exr")
-        self.scene.render.filepath = path
-        bpy.ops.render.render(write_still=True, scene=self.scene.name)
-        return _read_exr(path)
+        return photo_io.read_photo(self.scratch.render("render.exr"))
 
     def __exit__(self, *exc):
-        for collection, block in reversed(self.created):
-            with contextlib.suppress(ReferenceError):
-                collection.remove(block)
-        for image in set(bpy.data.images) - self.images_before:  # the Render Result
-            bpy.data.images.remove(image)
-        self.tmp.cleanup()
-        return False
-
-
-def _read_exr(path: str) -> np.ndarray:
-    """(H, W, 3) float64 linear pixels of an EXR, row 0 at the top."""
-    import OpenImageIO as oiio  # ships with Blender and the bpy wheel
-
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise RuntimeError(f"cannot read the render {path}: {oiio.geterror()}")
-    try:
-        pixels = inp.read_image(0, 0, 0, 3, "float")
-    finally:
-        inp.close()
-    return np.asarray(pixels, dtype=np.float64)
+        return self.scratch.__exit__(*exc)
 
 
 def render_sphere_cycles(material, lights, resolution: int = 64, samples: int = 16,
@@ -324,7 +275,7 @@ def render_sphere_cycles(material, lights, resolution: int = 64, samples: int = 
     sphere are black. Uses and then removes a temporary scene.
     """
     lights = np.atleast_2d(np.asarray(lights, dtype=np.float64))
-    with _TemporaryScene(material, resolution, samples) as tmp:
+    with _SphereScene(material, resolution, samples) as tmp:
         return [tmp.render(light, irradiance) for light in lights]
 
 

@@ -12,6 +12,8 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
+from brdf_reconstruct.brdf_addon.scratch_scene import configure_cycles, float_exr_output
+
 ALBEDO = 0.5
 SIZE = 48  # photo pixels (square)
 LIGHT = np.array([0.35, -0.55, 0.76]) / np.linalg.norm([0.35, -0.55, 0.76])
@@ -67,18 +69,13 @@ def render_photo(scene, path: pathlib.Path, size: int | tuple[int, int] = SIZE, 
     """Linear float EXR, no view transform, no denoising, CPU; ``size`` x ``size``
     pixels (or (width, height)). Direct light only by default; ``bounces`` > 0
     lets a mirror show what the light lights."""
+    # Cycles' adaptive sampling stays on here, as these photos were always rendered
+    configure_cycles(scene, samples, bounces=bounces, adaptive=True)
     r = scene.render
-    scene.render.engine = "CYCLES"
-    scene.cycles.samples = samples
-    scene.cycles.use_denoising = False
-    scene.cycles.max_bounces = bounces
-    scene.cycles.device = "CPU"
     r.resolution_x, r.resolution_y = (size, size) if isinstance(size, int) else size
     r.resolution_percentage = 100
     r.film_transparent = transparent
-    scene.view_settings.view_transform = "Standard"
-    r.image_settings.file_format = "OPEN_EXR"
-    r.image_settings.color_depth = "32"
+    float_exr_output(scene)
     r.filepath = str(path)
     bpy.ops.render.render(write_still=True)
 

@@ -1,0 +1,148 @@
+"""G-buffers as arrays: the per-pixel geometry of one photo, decoded from the
+multilayer EXR that Cycles writes (``brdf_addon/gbuffer.py`` renders it).
+
+Channels (Blender's names, layer ``LAYER``): ``Combined.A`` (coverage),
+``Normal.XYZ`` and ``Position.XYZ`` (world space, averaged over the pixel's
+samples, background ones giving 0), ``Diffuse Direct.RGB`` (a white Lambertian
+surface under a Sun of strength pi W/m^2: ``vis * max(n.l, 0)``) and the AOV
+``REGION_AOV.X`` (the region id). Images have row 0 at the top, column 0 at the
+left (EXR and numpy order). No bpy: OpenImageIO reads the file.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+
+LAYER = "ViewLayer"
+REGION_AOV = "brdf_region"
+# Below this n.l the visibility ratio is ill-conditioned; such points count as unlit.
+MIN_COSINE = 1e-6
+
+
+@dataclasses.dataclass(frozen=True)
+class GBuffers:
+    """Per-pixel geometry of one photo, full photo size (H, W).
+
+    normal: (H, W, 3) float64, world space, unit: the shading normal as rendered
+        (interpolated on smooth faces, towards the camera on back faces); 0 on
+        background.
+    position: (H, W, 3) float64, world space, scene units; 0 on background.
+    visibility: (H, W) float64 in [0, 1]: fraction of the distant light reaching
+        the point, from cast shadows by the scan itself (1 = lit); 0 where the
+        shading normal faces away from the light (n.l <= 0) and on background.
+    region: (H, W) int32: material slot index of the visible face (0 for an object
+        without slots; indices past the last slot clamp to it, as Blender's
+        renderers do); -1 on background.
+    mask: (H, W) bool: pixels covered by the object (coverage >= 1/2) with finite
+        geometry. ``region >= 0`` exactly where ``mask``.
+    camera_center: (3,) float64, world space. For an orthographic camera, a point
+        very far behind the camera on its axis, so that ``normalize(C - P)`` is the
+        (parallel) view direction; see ``orthographic``.
+    orthographic: True for an orthographic camera.
+    window: (row_start, row_stop, col_start, col_stop), half-open, of the rendered
+        crop; None when the full frame was rendered; an empty window when the
+        object projects outside the frame (nothing rendered). Outside it is
+        background.
+    """
+
+    normal: np.ndarray
+    position: np.ndarray
+    visibility: np.ndarray
+    region: np.ndarray
+    mask: np.ndarray
+    camera_center: np.ndarray
+    orthographic: bool = False
+    window: tuple[int, int, int, int] | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W) of the images."""
+        return self.mask.shape
+
+
+def read_multilayer_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """All channels of a (multi-part or single-part) multilayer EXR, by full name.
+
+    Returns {"ViewLayer.Normal.X": (H, W) float32, ...} on the display window
+    (row 0 at the top); pixels outside a part's data window are 0.
+    """
+    import OpenImageIO as oiio  # ships with Blender and the bpy wheel
+
+    image = oiio.ImageInput.open(os.fspath(path))
+    if image is None:
+        raise RuntimeError(f"cannot open {path}: {oiio.geterror()}")
+    channels = {}
+    try:
+        part = 0
+        while image.seek_subimage(part, 0):
+            spec = image.spec()
+            data = image.read_image(part, 0, 0, spec.nchannels, oiio.FLOAT)
+            if data is None:
+                raise RuntimeError(f"cannot read {path}: {image.geterror()}")
+            data = np.asarray(data, dtype=np.float32).reshape(
+                spec.height, spec.width, spec.nchannels)
+            full = np.zeros((spec.full_height, spec.full_width, spec.nchannels), np.float32)
+            # Place the data window into the display window (they differ for crops).
+            y0, x0 = spec.y - spec.full_y, spec.x - spec.full_x
+            ys = slice(max(y0, 0), min(y0 + spec.height, spec.full_height))
+            xs = slice(max(x0, 0), min(x0 + spec.width, spec.full_width))
+            full[ys, xs] = data[ys.start - y0:ys.stop - y0, xs.start - x0:xs.stop - x0]
+            for k, name in enumerate(spec.channelnames):
+                channels[name] = full[..., k]
+            part += 1
+    finally:
+        image.close()
+    return channels
+
+
+def empty(height, width, center, ortho, window) -> GBuffers:
+    """Background everywhere: what a photo whose object projects outside the frame gets."""
+    return GBuffers(
+        normal=np.zeros((height, width, 3)), position=np.zeros((height, width, 3)),
+        visibility=np.zeros((height, width)),
+        region=np.full((height, width), -1, dtype=np.int32),
+        mask=np.zeros((height, width), dtype=bool), camera_center=center,
+        orthographic=ortho, window=window)
+
+
+def decode(channels, *, light, slots, center, ortho, window) -> GBuffers:
+    """The :class:`GBuffers` of one render from its EXR ``channels``
+    (:func:`read_multilayer_exr`). light: (3,) unit world direction towards the light.
+    slots: the number of material slots (region ids past the last clamp to it), or
+    None for face sets. center, ortho, window: as in :class:`GBuffers`."""
+    def read(pass_name, components):
+        try:
+            planes = [channels[f"{LAYER}.{pass_name}.{c}"] for c in components]
+        except KeyError as missing:
+            raise RuntimeError(f"the G-buffer EXR has no channel {missing}; "
+                               f"it has {sorted(channels)}") from None
+        return np.stack(planes, axis=-1).astype(np.float64)
+
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        coverage = read("Combined", "A")[..., 0]
+        # Passes average over all samples of a pixel, background ones giving 0:
+        # divide by the coverage to get the value on the object.
+        scale = np.where(coverage > 0.0, 1.0 / coverage, 0.0)[..., None]
+        normal = read("Normal", "XYZ") * scale
+        position = read("Position", "XYZ") * scale
+        direct = read("Diffuse Direct", "RGB").mean(axis=-1) * scale[..., 0]
+        region_value = read(REGION_AOV, "X")[..., 0] * scale[..., 0]
+        length = np.linalg.norm(normal, axis=-1)
+        mask = ((coverage >= 0.5) & np.isfinite(coverage) & np.isfinite(length)
+                & (length > 0.5) & np.all(np.isfinite(position), axis=-1)
+                & np.isfinite(direct) & np.isfinite(region_value))
+        normal = np.where(mask[..., None], normal / np.where(mask, length, 1.0)[..., None], 0.0)
+        position = np.where(mask[..., None], position, 0.0)
+        cosine = normal @ light
+        lit = mask & (cosine > MIN_COSINE)
+        visibility = np.where(lit, np.clip(direct / np.where(lit, cosine, 1.0), 0.0, 1.0), 0.0)
+        region_value = np.rint(np.where(mask, region_value, 0.0))
+        if slots is not None:  # a face whose index is past the last slot renders with it
+            region_value = np.clip(region_value, 0, max(slots - 1, 0))
+        region = np.where(mask, region_value, -1)
+    return GBuffers(normal=normal, position=position, visibility=visibility,
+                    region=region.astype(np.int32), mask=mask, camera_center=center,
+                    orthographic=ortho, window=window)
