@@ -28,7 +28,7 @@ from .scratch_scene import ScratchScene, configure_cycles, float_exr_output
 _NAME = "BRDF_KL"
 
 
-def render_candidate(obj, material, camera, light, irradiance, resolution, samples: int,
+def render_candidate(obj, material, camera, light, irradiance, resolution, render_samples: int,
                      bounces: int = 0, device: str = "CPU", path=None) -> np.ndarray:
     """(H, W, 3) linear radiance: Cycles render of ``obj`` with ``material`` on every
     slot, seen by ``camera``, under a distant light (world direction ``light``,
@@ -57,7 +57,7 @@ def render_candidate(obj, material, camera, light, irradiance, resolution, sampl
         scene.collection.objects.link(sun)
         sun.rotation_mode = "QUATERNION"
         sun.rotation_quaternion = Vector((0, 0, 1)).rotation_difference(Vector(tuple(light)))
-        configure_cycles(scene, samples, device=device, bounces=bounces)
+        configure_cycles(scene, render_samples, device=device, bounces=bounces)
         r = scene.render
         r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
         ctx = bpy.context.scene.render
@@ -67,7 +67,7 @@ def render_candidate(obj, material, camera, light, irradiance, resolution, sampl
         return photo_io.read_photo(scratch.render(path if path is not None else "kl.exr"))
 
 
-def score_candidate(scene, inputs, region: int, table, samples: int = 16,
+def score_candidate(scene, inputs, region: int, table, render_samples: int = 16,
                     n_bins: int = 64, bounces: int = 0, device: str = "CPU") -> np.ndarray:
     """(V,) KL per photo that sees ``region``, of Cycles renders of ``table`` baked to a
     (temporary) material, against the photo, over the region's pixels. ``inputs``:
@@ -85,7 +85,7 @@ def score_candidate(scene, inputs, region: int, table, samples: int = 16,
         for j, (i, v) in enumerate(zip(seen, views, strict=True)):
             h, w = v.mask.shape
             image = render_candidate(scene.brdf.target, mat, photos[i].camera, v.light,
-                                     v.irradiance, (w, h), samples, bounces, device)
+                                     v.irradiance, (w, h), render_samples, bounces, device)
             ok = v.mask & np.all(np.isfinite(v.photo), axis=-1)
             # the fast path's bins: log-spaced over the photo's positive range
             kl[j] = kl_module.kl_divergence(v.photo[ok], image[ok], n_bins=n_bins,
@@ -95,11 +95,11 @@ def score_candidate(scene, inputs, region: int, table, samples: int = 16,
         remove_materials([mat])
 
 
-def select_by_cycles(scene, inputs, region: int, tables, samples: int = 16,
+def select_by_cycles(scene, inputs, region: int, tables, render_samples: int = 16,
                      n_bins: int = 64, bounces: int = 0, device: str = "CPU"):
     """Score every candidate table of one region by Cycles renders; returns
     ``(kl (T,) mean over photos, winner)``."""
-    score = np.array([score_candidate(scene, inputs, region, t, samples, n_bins, bounces,
+    score = np.array([score_candidate(scene, inputs, region, t, render_samples, n_bins, bounces,
                                       device).mean() for t in tables])
     return score, int(np.argmin(score))
 

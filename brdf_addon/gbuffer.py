@@ -74,7 +74,7 @@ def render_gbuffers(
     *,
     resolution: tuple[int, int] | None = None,
     crop: bool = True,
-    samples: int = 1,
+    render_samples: int = 1,
     tmpdir: str | os.PathLike | None = None,
     device: str = "CPU",
     region_attribute: str = "material_index",
@@ -89,7 +89,7 @@ def render_gbuffers(
     ``brdf_width`` / ``brdf_height`` if set, else the context scene's output size
     (with its percentage). The context scene's pixel aspect ratio is used.
     crop: render only the object's projected bounding box (same result, faster).
-    samples: Cycles samples per pixel, >= 1. One sample lies at the pixel centre,
+    render_samples: Cycles samples per pixel, >= 1. One sample lies at the pixel centre,
     which is what the G-buffers should hold; more are drawn from the 0.01 px
     filter (with rare outliers turning a normal by up to ~1 degree) and only help
     a soft-edged light, which this one is not. tmpdir: folder for the
@@ -113,8 +113,8 @@ def render_gbuffers(
     if light.shape != (3,) or not np.all(np.isfinite(light)) or not np.linalg.norm(light) > 0:
         raise ValueError(f"light_direction must be a finite non-zero 3-vector, got {light}")
     light = light / np.linalg.norm(light)
-    if int(samples) != samples or samples < 1:
-        raise ValueError(f"samples must be a positive integer, got {samples}")
+    if int(render_samples) != render_samples or render_samples < 1:
+        raise ValueError(f"render_samples must be a positive integer, got {render_samples}")
     if device not in ("CPU", "GPU"):
         raise ValueError(f"device must be 'CPU' or 'GPU', got {device!r}")
     if region_attribute not in ("material_index", FACE_SET_ATTRIBUTE):
@@ -126,7 +126,7 @@ def render_gbuffers(
     with ScratchScene(_NAME, remove_new_images=True, tmpdir=tmpdir) as scratch:
         scene = scratch.scene
         _build_scene(scratch, obj, camera, light, user_scene, width, height, region_attribute)
-        configure_cycles(scene, int(samples), device=device, point_sampled=True,
+        configure_cycles(scene, int(render_samples), device=device, point_sampled=True,
                          exact_direct_light=True)
         cam_eval, window = _crop_window(scene, obj, camera, width, height) if crop else (
             _evaluated(scene, camera), None)

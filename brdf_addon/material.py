@@ -179,10 +179,10 @@ class _SphereScene:
     EXR output. Everything it creates is removed on exit, also after an error; the
     user's scenes and the context scene are not touched."""
 
-    def __init__(self, material, resolution: int, samples: int):
+    def __init__(self, material, resolution: int, render_samples: int):
         self.material = material
         self.resolution = resolution
-        self.samples = samples
+        self.render_samples = render_samples
         self.scratch = ScratchScene("BRDF bake check", remove_new_images=True)
 
     def __enter__(self):
@@ -198,7 +198,7 @@ class _SphereScene:
         scratch = self.scratch
         scene = scratch.scene
         # Point-sample each pixel centre, like the numpy sphere.
-        configure_cycles(scene, self.samples, point_sampled=True)
+        configure_cycles(scene, self.render_samples, point_sampled=True)
         r = scene.render
         r.resolution_x = r.resolution_y = self.resolution
         r.resolution_percentage = 100
@@ -266,7 +266,7 @@ class _SphereScene:
         return self.scratch.__exit__(*exc)
 
 
-def render_sphere_cycles(material, lights, resolution: int = 64, samples: int = 16,
+def render_sphere_cycles(material, lights, resolution: int = 64, render_samples: int = 16,
                          irradiance: float = 1.0) -> list[np.ndarray]:
     """Cycles images (H, W, 3) of a unit sphere with ``material``, one per light.
 
@@ -275,11 +275,11 @@ def render_sphere_cycles(material, lights, resolution: int = 64, samples: int = 
     sphere are black. Uses and then removes a temporary scene.
     """
     lights = np.atleast_2d(np.asarray(lights, dtype=np.float64))
-    with _SphereScene(material, resolution, samples) as tmp:
+    with _SphereScene(material, resolution, render_samples) as tmp:
         return [tmp.render(light, irradiance) for light in lights]
 
 
-def bake_error(material, table, lights, resolution: int = 64, samples: int = 16,
+def bake_error(material, table, lights, resolution: int = 64, render_samples: int = 16,
                irradiance: float = 1.0, interpolation: str = "trilinear") -> dict:
     """Relative RMSE of Cycles renders of ``material`` against numpy shading of
     ``table``, one per light.
@@ -290,7 +290,7 @@ def bake_error(material, table, lights, resolution: int = 64, samples: int = 16,
     are "held out" in the sense that none was singled out by the fit, but pick
     ones other than the fit's own ``fitting.ERROR_LIGHTS`` to check the bake
     independently. The Sun's strength is ``irradiance`` (W/m^2 on a surface facing
-    it), the numpy side uses the same value. Samples: Cycles samples per pixel;
+    it), the numpy side uses the same value. render_samples: Cycles samples per pixel;
     with a delta Sun, direct light only and point-sampled pixels the render is
     nearly noise-free, but Cycles' narrow pixel filter still throws the odd sample
     into a neighbouring pixel, which 16 samples average away. interpolation: how
@@ -309,7 +309,7 @@ def bake_error(material, table, lights, resolution: int = 64, samples: int = 16,
     lights = lights / np.linalg.norm(lights, axis=1, keepdims=True)
     table = fitting.clean_table(table)
     normals, mask = render.sphere_normals(resolution)
-    images = render_sphere_cycles(material, lights, resolution, samples, irradiance)
+    images = render_sphere_cycles(material, lights, resolution, render_samples, irradiance)
     stored = material.get("brdf_fit")
     params = lobes.LobeParams.from_dict(json.loads(stored)) if stored else None
     rel, model_rel = [], []
@@ -324,7 +324,7 @@ def bake_error(material, table, lights, resolution: int = 64, samples: int = 16,
             model_rel.append(metrics.relative_rmse(model, ref))
     out = {"rel_rmse": [float(e) for e in rel], "mean": float(np.mean(rel)),
            "max": float(np.max(rel)), "lights": lights.tolist(), "resolution": resolution,
-           "samples": samples, "time_s": time.perf_counter() - t0}
+           "samples": render_samples, "time_s": time.perf_counter() - t0}
     if params is not None:
         out["model_rel_rmse"] = [float(e) for e in model_rel]
     return out

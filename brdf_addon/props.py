@@ -205,8 +205,8 @@ class BRDFSettings(PropertyGroup):
         name="Preset", default="BALANCED", update=_apply_preset,
         items=[("FAST", "Fast", HINTS["FAST"]), ("BALANCED", "Balanced", HINTS["BALANCED"]),
                ("ACCURATE", "Accurate", HINTS["ACCURATE"]), ("CUSTOM", "Custom", "Own values")])
-    samples: IntProperty(name="Samples", default=_BALANCED["samples"], min=1, soft_max=200,
-                         description="Condition-optimal directions per trial (paper: 6)")
+    samples: IntProperty(name="BRDF Samples", default=_BALANCED["samples"], min=1, soft_max=200,
+                         description="Condition-optimal BRDF samples (directions) per trial (paper: 6); not Cycles samples")
     trials: IntProperty(name="Trials", default=_BALANCED["trials"], min=1, soft_max=128,
                         description="Random-subset reconstructions; KL picks one")
     subset_fraction: FloatProperty(name="Subset Fraction",

@@ -1,259 +1,28 @@
-"""One reconstruction run, split where Blender must and must not be touched.
+"""One reconstruction run in steps (:class:`Run`), split where Blender must and must
+not be touched.
 
-1. :func:`gather` (main thread, bpy): validates the scene, reads each photo as
-   its camera produced it (``brdf_addon.photo_input``: colour space, saturation,
-   size, lens distortion, exposure, irradiance reference), finds its light, and
-   renders its G-buffers with Cycles (``brdf_addon.gbuffer``). Returns
-   ``core.method.pipeline.PhotoInput`` arrays.
-2. ``core.method.pipeline.run`` (any thread, no bpy): the science.
-3. :func:`write_back` (main thread, bpy): writes ``brdf_<region>.binary``, the
-   pictures and ``report.json`` to the output folder, fits and builds one NEW
-   material per region (node group "BRDF Reconstruction"), measures its bake
-   error, and fills ``scene.brdf.results``.
+1. ``gathering.gather`` (main thread, bpy), one photo per step: the photo, its
+   light and its Cycles G-buffers, as ``core.method.pipeline.PhotoInput``.
+2. ``core.method.pipeline.run`` (a worker thread, no bpy): the science.
+3. ``outputs.write_back`` (main thread, bpy): tables, pictures, report,
+   materials.
 
-The operator (``operators.reconstruct``), the batch entry and the tests all
-call these three. Nothing of the user's is modified: photos and masks are only
-read, new materials are created (never assigned or edited in place), and
-outputs go to new files in the output folder.
+The operator (``operators/reconstruct.py``), the batch entry and the tests all
+drive a :class:`Run`. Nothing of the user's is modified.
 """
+
 
 from __future__ import annotations
 
-import json
-import os
-import pathlib
 import time
 
-import bpy
 import numpy as np
 
-from ..core.brdf import merl
-from ..core.method import pictures, pipeline, selection
-from . import gbuffer, photo_input, prefs, props
-
-# Lights for the bake error, camera space (+z to the viewer): not the fit's own
-# error lights (core.bake.fitting.ERROR_LIGHTS); the fit itself sees no light.
-BAKE_LIGHTS = np.array([[0.3, 0.2, 0.93], [-0.5, 0.4, 0.77]])
+from ..core.method import pipeline
+from . import gathering, outputs, photo_input, prefs, props
 
 
-def region_labels(obj, mode: str = "MATERIAL_SLOT") -> dict[int, str]:
-    """Region id -> a readable name (the material slot's material, or "slot N";
-    "face set N")."""
-    if mode == "FACE_SET":
-        attribute = obj.data.attributes.get(gbuffer.FACE_SET_ATTRIBUTE) if obj else None
-        if attribute is None:
-            return {0: obj.name if obj is not None else "region 0"}
-        ids = np.zeros(len(attribute.data), dtype=np.int32)
-        attribute.data.foreach_get("value", ids)
-        return {int(i): f"face set {int(i)}" for i in np.unique(ids)}
-    if obj is None or not obj.material_slots:
-        return {0: obj.name if obj is not None else "region 0"}
-    return {i: (slot.material.name if slot.material else f"slot {i}")
-            for i, slot in enumerate(obj.material_slots)}
-
-
-def check_scene(scene) -> None:
-    """One-sentence ValueError for what would stop a run before it starts."""
-    settings = scene.brdf
-    obj = settings.target
-    if obj is None:
-        raise ValueError("choose the scan object (a mesh) in the BRDF panel")
-    if obj.type != "MESH" or len(obj.data.polygons) == 0:
-        raise ValueError(f"the scan {obj.name} is a mesh without faces")
-    if not len(settings.photos):
-        raise ValueError("add at least one lit photo")
-    for photo in settings.photos:
-        if not photo.filepath:
-            if photo.camera is not None:
-                raise ValueError(f"camera {photo.camera.name} has no photo: choose the "
-                                 f"image file of entry {photo.name or '(unnamed)'}")
-            raise ValueError(f"photo {photo.name} has no image file")
-        if not os.path.isfile(bpy.path.abspath(photo.filepath)):
-            raise ValueError(f"photo file not found: {bpy.path.abspath(photo.filepath)}")
-        if photo.camera is None:
-            raise ValueError(f"photo {photo.name} has no camera: pick the camera it was "
-                             "taken from")
-
-
-def gather(scene) -> list[pipeline.PhotoInput]:
-    """Photos, lights and Cycles G-buffers for every photo of ``scene.brdf`` at once
-    (:class:`ReconstructRun` does the same one photo per step). Raises
-    ValueError (one sentence) for a bad scene."""
-    return gather_capture(scene)[0]
-
-
-def gather_capture(scene) -> tuple[list[pipeline.PhotoInput], dict]:
-    """:func:`gather`, and what was applied to the photos (the report's ``capture``)."""
-    check_scene(scene)
-    scales, notes = photo_input.exposure_plan(scene)
-    gathered = [photo_input.gather_photo(scene, photo, float(k), note)
-                for photo, k, note in zip(scene.brdf.photos, scales, notes, strict=True)]
-    return capture_inputs(gathered)
-
-
-def capture_inputs(gathered) -> tuple[list[pipeline.PhotoInput], dict]:
-    """Pipeline inputs of gathered photos (irradiance references applied) and the
-    report's ``capture`` section."""
-    inputs, irradiance_notes = photo_input.apply_irradiance(gathered)
-    return inputs, {"photos": [g.report for g in gathered], "irradiance": irradiance_notes}
-
-
-def capture_notes(capture: dict) -> list[str]:
-    """One line per thing done to the photos that the user should know: a scaled
-    or undistorted photo, an exposure scale, saturated pixels, the irradiance rule."""
-    lines = []
-    photos = capture.get("photos", [])
-    for p in photos:
-        name = p.get("name", "")
-        if p.get("scaled"):
-            lines.append(f"{name}: {p['scaled']}")
-        if p.get("undistorted"):
-            lines.append(f"{name}: undistorted ({p['undistorted']})")
-        if p.get("exposure") and p.get("exposure_scale", 1.0) != 1.0:
-            lines.append(p["exposure"])
-        if p.get("saturated_pixels"):
-            lines.append(f"{name}: {p['saturated_pixels']} saturated pixels excluded")
-        uncertainty = p.get("light", {}).get("uncertainty_deg")
-        if uncertainty is not None:
-            lines.append(f"{name}: sphere-probe light, uncertainty {uncertainty:.2f} deg")
-    if len(photos) > 1 and all("assumed equally exposed" in p.get("exposure", "")
-                               for p in photos):
-        lines.append("no exposure EXIF: photos assumed equally exposed")
-    return lines + list(capture.get("irradiance", []))
-
-
-def output_dir(scene) -> pathlib.Path:
-    path = pathlib.Path(bpy.path.abspath(scene.brdf.output_dir or "//brdf_out"))
-    path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
-def _as_image(name: str, picture: np.ndarray) -> bpy.types.Image:
-    """A new Blender image holding a picture (row 0 = top; Blender stores bottom-up)."""
-    h, w = picture.shape[:2]
-    image = bpy.data.images.new(name, w, h, alpha=False)
-    rgba = np.ones((h, w, 4), dtype=np.float32)
-    rgba[..., :3] = picture[::-1]
-    image.pixels.foreach_set(rgba.ravel())
-    image.pack()
-    return image
-
-
-def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
-               bake: bool = True, fits: dict | None = None,
-               capture: dict | None = None) -> dict:
-    """Write tables, pictures, materials and ``report.json``; fill ``scene.brdf.results``.
-
-    Returns the report dict. Existing files of the same name in the output
-    folder are replaced (they are this tool's outputs); nothing else is.
-    ``fits``: {region: (winner, LobeFit)} made beforehand off the main thread;
-    a region whose winner changed since (Cycles selection) is fitted here.
-    ``capture``: what was applied to the photos (``gather_capture``), reported.
-    """
-    settings = scene.brdf
-    out = output_dir(scene)
-    labels = region_labels(settings.target, settings.region_mode)
-    settings.results.clear()
-    settings.capture_notes = json.dumps(capture_notes(capture or {}))
-    regions = []
-    for r in result.regions:
-        label = labels.get(r.region, f"region {r.region}")
-        entry = settings.results.add()
-        entry.region, entry.label, entry.status, entry.reason = (
-            r.region, label, r.status, r.reason)
-        entry.counts = json.dumps(r.counts)
-        summary = r.summary() | {"label": label}
-        if r.status == "ok":
-            t0 = time.perf_counter()
-            table_path = out / f"brdf_{r.region}.binary"
-            merl.write(table_path, r.table)
-            entry.table_path = str(table_path)
-            entry.winner, entry.kl = r.winner, float(r.kl[r.winner])
-            views = pipeline.region_views(inputs, r.region)
-            picture = None
-            if views:
-                v = views[0]
-                render = selection.shade_gbuffer(r.table, v.normal, v.visibility, v.mask,
-                                                 v.position, v.camera_center, v.light,
-                                                 v.irradiance)
-                picture = pictures.photo_vs_render(v.photo, render, v.mask)
-            slice_pic = pictures.slice_image(r.table)
-            pictures.write_png(out / f"brdf_{r.region}_slice.png", slice_pic)
-            entry.slice_plot = _as_image(f"BRDF {label} slice", slice_pic)
-            summary["pictures"] = [f"brdf_{r.region}_slice.png"]
-            if picture is not None:
-                pictures.write_png(out / f"brdf_{r.region}_photo_vs_render.png", picture)
-                summary["pictures"].append(f"brdf_{r.region}_photo_vs_render.png")
-            if views and r.reliable_pixels is not None:
-                first = int(r.observed_pixels[0, 0])  # the first photo seeing the region
-                overlay = pictures.reliable_overlay(
-                    inputs[first].photo, r.observed_pixels[r.observed_pixels[:, 0] == first, 1:],
-                    r.reliable_pixels[r.reliable_pixels[:, 0] == first, 1:])
-                name = f"brdf_{r.region}_reliable_region.png"
-                pictures.write_png(out / name, overlay)
-                summary["pictures"].append(name)
-                entry.plot = _as_image(f"BRDF {label} photo vs render", picture)
-            summary["table"] = table_path.name
-            timings[f"outputs_region_{r.region}"] = time.perf_counter() - t0
-            if bake:
-                t0 = time.perf_counter()
-                fit = (fits or {}).get(r.region)
-                fit = fit[1] if fit is not None and fit[0] == r.winner else None
-                summary["material"] = _bake(scene, r, label, table_path, entry, fit)
-                timings[f"bake_region_{r.region}"] = time.perf_counter() - t0
-        regions.append(summary)
-    report = {
-        "settings": props.settings_dict(settings),
-        "scan": settings.target.name,
-        "photos": result.photo_counts,
-        "capture": capture or {},
-        "regions": regions,
-        "timings_s": timings | {f"pipeline_{k}": v for k, v in result.timings.items()},
-        "cycles": {
-            # the fewest each comparison needs, as measured (see the README)
-            "gbuffers": {"samples": 1, "bounces": 0, "pixel_filter_px": 0.01,
-                         "why": "one sample at the pixel centre is exact geometry; "
-                                "tests/test_blender_gbuffer.py"},
-            "selection": {"path": settings.kl_path.lower(),
-                          "samples": settings.kl_samples if settings.kl_path == "CYCLES"
-                          else None, "bounces": 0,
-                          "why": "bench/results/cycles_kl.json: the candidates' ranking "
-                                 "is the same from 1 sample to 256"},
-            "device": prefs.cycles_device(),
-        },
-        "blender": bpy.app.version_string,
-    }
-    (out / "report.json").write_text(json.dumps(report, indent=1, default=_json_default))
-    return report
-
-
-def _bake(scene, r, label, table_path, entry, fit=None) -> dict:
-    """Fit the Cycles lobes to the table (unless given), build a NEW material,
-    measure its bake error."""
-    from ..core.bake import fitting
-    from . import material
-
-    fit = fit if fit is not None else fitting.fit(r.table)
-    provenance = {"table_path": str(table_path),
-                  "settings": props.settings_dict(scene.brdf),
-                  "region": int(r.region), "kl": float(r.kl[r.winner]), "trial": int(r.winner)}
-    mat = material.build_material(f"BRDF {label}", fit, provenance)
-    errors = material.bake_error(mat, r.table, BAKE_LIGHTS)
-    mat["brdf_bake_error"] = json.dumps(errors, default=_json_default)
-    entry.material = mat
-    entry.bake_error = float(errors["max"])
-    return {"name": mat.name, "fit": json.loads(mat["brdf_fit"]), "bake_error": errors}
-
-
-def _json_default(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    return str(o)
-
-
-class ReconstructRun:
+class Run:
     """A run in steps, so a modal operator can keep Blender responsive.
 
     Each :meth:`step` does a bounded piece of work in the calling (main)
@@ -284,7 +53,7 @@ class ReconstructRun:
         self._cycles_queue = None
         self._fits = {}
         self._t0 = time.perf_counter()
-        check_scene(scene)
+        gathering.check_scene(scene)
         self._settings = props.pipeline_settings(scene.brdf)
         self._n_photos = len(scene.brdf.photos)
         self._exposure = photo_input.exposure_plan(scene)
@@ -347,7 +116,7 @@ class ReconstructRun:
                 notes[self._photo]))
             self._photo += 1
             if self._photo == self._n_photos:
-                self._inputs, self._capture = capture_inputs(self._gathered)
+                self._inputs, self._capture = gathering.capture_inputs(self._gathered)
             self.progress = 0.3 * self._photo / self._n_photos
             self._timings["gbuffers"] = self._timings.get("gbuffers", 0.0) + (
                 time.perf_counter() - t0)
@@ -373,7 +142,7 @@ class ReconstructRun:
             return False
         self.progress, self.message = 0.9, "writing results"
         self._timings["total_before_outputs"] = time.perf_counter() - self._t0
-        self.report = write_back(self.scene, self._inputs, value, self._timings, self.bake,
+        self.report = outputs.write_back(self.scene, self._inputs, value, self._timings, self.bake,
                                  self._fits, self._capture)
         self.progress, self.message = 1.0, "done"
         return True

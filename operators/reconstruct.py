@@ -9,7 +9,7 @@ was. Background mode (batch, tests): the same steps, synchronously.
 
 import bpy
 
-from ..brdf_addon import runner
+from ..brdf_addon import gathering, runner
 from ..core.method import pipeline
 
 
@@ -35,7 +35,7 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
     def execute(self, context):
         try:
             echo = _echo if bpy.app.background else None
-            report = runner.ReconstructRun(context.scene, threaded=False,
+            report = runner.Run(context.scene, threaded=False,
                                               on_progress=echo).run()
         except (ValueError, OSError, pipeline.Cancelled) as error:
             self.report({"ERROR"}, _sentence(error))
@@ -47,7 +47,7 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
         if bpy.app.background or context.window is None:
             return self.execute(context)
         try:
-            self._run = runner.ReconstructRun(context.scene, threaded=True)
+            self._run = runner.Run(context.scene, threaded=True)
         except ValueError as error:
             self.report({"ERROR"}, _sentence(error))
             return {"CANCELLED"}
@@ -101,7 +101,7 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
         context.scene.brdf.progress = 0.0
 
     def _report_done(self, report):
-        for line in runner.capture_notes(report.get("capture", {})):
+        for line in gathering.capture_notes(report.get("capture", {})):
             self.report({"INFO"}, line)
             if bpy.app.background:
                 print(f"note: {line}", flush=True)

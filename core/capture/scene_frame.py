@@ -123,6 +123,14 @@ def _spherical_median(vectors: np.ndarray, iterations: int = 50) -> np.ndarray:
     return m / np.linalg.norm(m)
 
 
+def _angles(vectors: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """(N,) angles in radians between (N, 3) unit vectors and a unit (3,) direction,
+    from the chord (2 asin(|a - b| / 2)): exact near 0, where ``arccos`` of a dot
+    product a rounding below 1 gives 2e-8 rad for identical directions."""
+    chord = np.linalg.norm(vectors - direction, axis=-1)
+    return 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
+
+
 def _rms(angles: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(angles))))
 
@@ -167,7 +175,7 @@ def estimate_up(rotations, centres=None) -> UpEstimate:
     mean_up = _spherical_median(ups)
 
     estimate = UpEstimate(
-        mean_up, _rms(np.arccos(np.clip(ups @ mean_up, -1.0, 1.0))), "camera up vectors"
+        mean_up, _rms(_angles(ups, mean_up)), "camera up vectors"
     )
     eigenvalues, eigenvectors = np.linalg.eigh(rights.T @ rights / n_cam)
     if eigenvalues[1] >= _HORIZON_MIN_EIGENVALUE:

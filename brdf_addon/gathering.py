@@ -1,0 +1,105 @@
+"""The run's inputs, gathered from the scene (main thread, bpy).
+
+:func:`check_scene` validates the scene before any work; :func:`gather` reads
+each photo as its camera produced it (``brdf_addon/photo_input.py``: colour
+space, saturation, size, lens distortion, exposure, irradiance reference), finds
+its light and renders its G-buffers with Cycles (``brdf_addon/gbuffer.py``),
+returning ``core.method.pipeline.PhotoInput`` arrays; :func:`capture_notes` says
+in words what was done to the photos. Photos and masks are only read.
+"""
+
+from __future__ import annotations
+
+import os
+
+import bpy
+import numpy as np
+
+from ..core.method import pipeline
+from . import gbuffer, photo_input
+
+
+def region_labels(obj, mode: str = "MATERIAL_SLOT") -> dict[int, str]:
+    """Region id -> a readable name (the material slot's material, or "slot N";
+    "face set N")."""
+    if mode == "FACE_SET":
+        attribute = obj.data.attributes.get(gbuffer.FACE_SET_ATTRIBUTE) if obj else None
+        if attribute is None:
+            return {0: obj.name if obj is not None else "region 0"}
+        ids = np.zeros(len(attribute.data), dtype=np.int32)
+        attribute.data.foreach_get("value", ids)
+        return {int(i): f"face set {int(i)}" for i in np.unique(ids)}
+    if obj is None or not obj.material_slots:
+        return {0: obj.name if obj is not None else "region 0"}
+    return {i: (slot.material.name if slot.material else f"slot {i}")
+            for i, slot in enumerate(obj.material_slots)}
+
+
+def check_scene(scene) -> None:
+    """One-sentence ValueError for what would stop a run before it starts."""
+    settings = scene.brdf
+    obj = settings.target
+    if obj is None:
+        raise ValueError("choose the scan object (a mesh) in the BRDF panel")
+    if obj.type != "MESH" or len(obj.data.polygons) == 0:
+        raise ValueError(f"the scan {obj.name} is a mesh without faces")
+    if not len(settings.photos):
+        raise ValueError("add at least one lit photo")
+    for photo in settings.photos:
+        if not photo.filepath:
+            if photo.camera is not None:
+                raise ValueError(f"camera {photo.camera.name} has no photo: choose the "
+                                 f"image file of entry {photo.name or '(unnamed)'}")
+            raise ValueError(f"photo {photo.name} has no image file")
+        if not os.path.isfile(bpy.path.abspath(photo.filepath)):
+            raise ValueError(f"photo file not found: {bpy.path.abspath(photo.filepath)}")
+        if photo.camera is None:
+            raise ValueError(f"photo {photo.name} has no camera: pick the camera it was "
+                             "taken from")
+
+
+def gather(scene) -> list[pipeline.PhotoInput]:
+    """Photos, lights and Cycles G-buffers for every photo of ``scene.brdf`` at once
+    (:class:`runner.Run` does the same one photo per step). Raises
+    ValueError (one sentence) for a bad scene."""
+    return gather_capture(scene)[0]
+
+
+def gather_capture(scene) -> tuple[list[pipeline.PhotoInput], dict]:
+    """:func:`gather`, and what was applied to the photos (the report's ``capture``)."""
+    check_scene(scene)
+    scales, notes = photo_input.exposure_plan(scene)
+    gathered = [photo_input.gather_photo(scene, photo, float(k), note)
+                for photo, k, note in zip(scene.brdf.photos, scales, notes, strict=True)]
+    return capture_inputs(gathered)
+
+
+def capture_inputs(gathered) -> tuple[list[pipeline.PhotoInput], dict]:
+    """Pipeline inputs of gathered photos (irradiance references applied) and the
+    report's ``capture`` section."""
+    inputs, irradiance_notes = photo_input.apply_irradiance(gathered)
+    return inputs, {"photos": [g.report for g in gathered], "irradiance": irradiance_notes}
+
+
+def capture_notes(capture: dict) -> list[str]:
+    """One line per thing done to the photos that the user should know: a scaled
+    or undistorted photo, an exposure scale, saturated pixels, the irradiance rule."""
+    lines = []
+    photos = capture.get("photos", [])
+    for p in photos:
+        name = p.get("name", "")
+        if p.get("scaled"):
+            lines.append(f"{name}: {p['scaled']}")
+        if p.get("undistorted"):
+            lines.append(f"{name}: undistorted ({p['undistorted']})")
+        if p.get("exposure") and p.get("exposure_scale", 1.0) != 1.0:
+            lines.append(p["exposure"])
+        if p.get("saturated_pixels"):
+            lines.append(f"{name}: {p['saturated_pixels']} saturated pixels excluded")
+        uncertainty = p.get("light", {}).get("uncertainty_deg")
+        if uncertainty is not None:
+            lines.append(f"{name}: sphere-probe light, uncertainty {uncertainty:.2f} deg")
+    if len(photos) > 1 and all("assumed equally exposed" in p.get("exposure", "")
+                               for p in photos):
+        lines.append("no exposure EXIF: photos assumed equally exposed")
+    return lines + list(capture.get("irradiance", []))

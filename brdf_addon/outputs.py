@@ -1,0 +1,155 @@
+"""The run's outputs, written back (main thread, bpy): ``brdf_<region>.binary``,
+the pictures and ``report.json`` in the output folder, one NEW material per region
+(node group "BRDF Reconstruction") with its bake error, and
+``scene.brdf.results``. Nothing of the user's is modified: new materials are
+created (never assigned or edited in place) and outputs go to new files.
+"""
+
+
+from __future__ import annotations
+
+import json
+import pathlib
+import time
+
+import bpy
+import numpy as np
+
+from ..core.brdf import merl
+from ..core.method import pictures, pipeline, selection
+from . import gathering, prefs, props
+
+# Lights for the bake error, camera space (+z to the viewer): not the fit's own
+# error lights (core.bake.fitting.ERROR_LIGHTS); the fit itself sees no light.
+BAKE_LIGHTS = np.array([[0.3, 0.2, 0.93], [-0.5, 0.4, 0.77]])
+
+
+def output_dir(scene) -> pathlib.Path:
+    path = pathlib.Path(bpy.path.abspath(scene.brdf.output_dir or "//brdf_out"))
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _as_image(name: str, picture: np.ndarray) -> bpy.types.Image:
+    """A new Blender image holding a picture (row 0 = top; Blender stores bottom-up)."""
+    h, w = picture.shape[:2]
+    image = bpy.data.images.new(name, w, h, alpha=False)
+    rgba = np.ones((h, w, 4), dtype=np.float32)
+    rgba[..., :3] = picture[::-1]
+    image.pixels.foreach_set(rgba.ravel())
+    image.pack()
+    return image
+
+
+def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
+               bake: bool = True, fits: dict | None = None,
+               capture: dict | None = None) -> dict:
+    """Write tables, pictures, materials and ``report.json``; fill ``scene.brdf.results``.
+
+    Returns the report dict. Existing files of the same name in the output
+    folder are replaced (they are this tool's outputs); nothing else is.
+    ``fits``: {region: (winner, LobeFit)} made beforehand off the main thread;
+    a region whose winner changed since (Cycles selection) is fitted here.
+    ``capture``: what was applied to the photos (``gather_capture``), reported.
+    """
+    settings = scene.brdf
+    out = output_dir(scene)
+    labels = gathering.region_labels(settings.target, settings.region_mode)
+    settings.results.clear()
+    settings.capture_notes = json.dumps(gathering.capture_notes(capture or {}))
+    regions = []
+    for r in result.regions:
+        label = labels.get(r.region, f"region {r.region}")
+        entry = settings.results.add()
+        entry.region, entry.label, entry.status, entry.reason = (
+            r.region, label, r.status, r.reason)
+        entry.counts = json.dumps(r.counts)
+        summary = r.summary() | {"label": label}
+        if r.status == "ok":
+            t0 = time.perf_counter()
+            table_path = out / f"brdf_{r.region}.binary"
+            merl.write(table_path, r.table)
+            entry.table_path = str(table_path)
+            entry.winner, entry.kl = r.winner, float(r.kl[r.winner])
+            views = pipeline.region_views(inputs, r.region)
+            picture = None
+            if views:
+                v = views[0]
+                render = selection.shade_gbuffer(r.table, v.normal, v.visibility, v.mask,
+                                                 v.position, v.camera_center, v.light,
+                                                 v.irradiance)
+                picture = pictures.photo_vs_render(v.photo, render, v.mask)
+            slice_pic = pictures.slice_image(r.table)
+            pictures.write_png(out / f"brdf_{r.region}_slice.png", slice_pic)
+            entry.slice_plot = _as_image(f"BRDF {label} slice", slice_pic)
+            summary["pictures"] = [f"brdf_{r.region}_slice.png"]
+            if picture is not None:
+                pictures.write_png(out / f"brdf_{r.region}_photo_vs_render.png", picture)
+                summary["pictures"].append(f"brdf_{r.region}_photo_vs_render.png")
+            if views and r.reliable_pixels is not None:
+                first = int(r.observed_pixels[0, 0])  # the first photo seeing the region
+                overlay = pictures.reliable_overlay(
+                    inputs[first].photo, r.observed_pixels[r.observed_pixels[:, 0] == first, 1:],
+                    r.reliable_pixels[r.reliable_pixels[:, 0] == first, 1:])
+                name = f"brdf_{r.region}_reliable_region.png"
+                pictures.write_png(out / name, overlay)
+                summary["pictures"].append(name)
+                entry.plot = _as_image(f"BRDF {label} photo vs render", picture)
+            summary["table"] = table_path.name
+            timings[f"outputs_region_{r.region}"] = time.perf_counter() - t0
+            if bake:
+                t0 = time.perf_counter()
+                fit = (fits or {}).get(r.region)
+                fit = fit[1] if fit is not None and fit[0] == r.winner else None
+                summary["material"] = _bake(scene, r, label, table_path, entry, fit)
+                timings[f"bake_region_{r.region}"] = time.perf_counter() - t0
+        regions.append(summary)
+    report = {
+        "settings": props.settings_dict(settings),
+        "scan": settings.target.name,
+        "photos": result.photo_counts,
+        "capture": capture or {},
+        "regions": regions,
+        "timings_s": timings | {f"pipeline_{k}": v for k, v in result.timings.items()},
+        "cycles": {
+            # the fewest each comparison needs, as measured (see the README)
+            "gbuffers": {"samples": 1, "bounces": 0, "pixel_filter_px": 0.01,
+                         "why": "one sample at the pixel centre is exact geometry; "
+                                "tests/test_blender_gbuffer.py"},
+            "selection": {"path": settings.kl_path.lower(),
+                          "samples": settings.kl_samples if settings.kl_path == "CYCLES"
+                          else None, "bounces": 0,
+                          "why": "bench/results/cycles_kl.json: the candidates' ranking "
+                                 "is the same from 1 sample to 256"},
+            "device": prefs.cycles_device(),
+        },
+        "blender": bpy.app.version_string,
+    }
+    (out / "report.json").write_text(json.dumps(report, indent=1, default=_json_default))
+    return report
+
+
+def _bake(scene, r, label, table_path, entry, fit=None) -> dict:
+    """Fit the Cycles lobes to the table (unless given), build a NEW material,
+    measure its bake error."""
+    from ..core.bake import fitting
+    from . import material
+
+    fit = fit if fit is not None else fitting.fit(r.table)
+    provenance = {"table_path": str(table_path),
+                  "settings": props.settings_dict(scene.brdf),
+                  "region": int(r.region), "kl": float(r.kl[r.winner]), "trial": int(r.winner)}
+    mat = material.build_material(f"BRDF {label}", fit, provenance)
+    errors = material.bake_error(mat, r.table, BAKE_LIGHTS)
+    mat["brdf_bake_error"] = json.dumps(errors, default=_json_default)
+    entry.material = mat
+    entry.bake_error = float(errors["max"])
+    return {"name": mat.name, "fit": json.loads(mat["brdf_fit"]), "bake_error": errors}
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    return str(o)
