@@ -1,6 +1,6 @@
 """What real-camera inputs cost the reconstruction, end to end through the batch entry.
 
-The demo's capture (``bench/capture.py``: the degraded bunny scan, the COLMAP ring,
+The demo's capture (``testkit/capture.py``: the degraded bunny scan, the COLMAP ring,
 3 linear EXR photos under one distant light, shaded by a held-out table; the
 demo's cache, ``capture.cache_folder``) is turned into the photos and job files a
 camera and a user would produce, and each is run through
@@ -65,23 +65,21 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
 import pathlib
-import platform
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
 import tomllib
 
+import common
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-RESULTS = HERE / "results"
+RESULTS = common.RESULTS
 COMMAND = ".venv/bin/python bench/camera_inputs_bench.py"
 MATERIALS = ("heldout_gold_medium", "heldout_rough_plastic")
-CAPTURE = {"views": 6, "lit": 3, "resolution": (240, 180), "seed": 0}
+CAPTURE = common.DEMO_CAPTURE
+NOTE = "2 shared cores; wall times are indicative (load_1min per run)"
 PRESET = "BALANCED"
 PEAK = 0.9  # the brightest pixel of the set at this fraction of full scale (tiff16, 8-bit)
 CLIP_SHARE = 0.025  # share of the object's pixels with a channel at code 255 (clipped)
@@ -382,29 +380,11 @@ def distorted_variants(work, capture_dir, lit, lens: str) -> list[Variant]:
 # --------------------------------------------------------------------------- runs
 
 
-def ensure_capture(material: str) -> tuple[pathlib.Path, float | None]:
-    """The demo's capture of ``material`` (generated now if missing: seconds, else None)."""
-    from testkit import capture
-
-    settings = (material, CAPTURE["views"], CAPTURE["lit"], CAPTURE["resolution"],
-                CAPTURE["seed"])
-    folder = capture.cache_folder(*settings)
-    if (folder / "job.toml").is_file():
-        return folder, None
-    t0 = time.perf_counter()
-    subprocess.run(capture.command(folder, *settings), check=True, stdout=subprocess.DEVNULL)
-    return folder, time.perf_counter() - t0
-
-
 def run_batch(job: pathlib.Path, out: pathlib.Path, truth: np.ndarray) -> dict:
     """The batch entry on ``job`` in a fresh subprocess; the scores and the report."""
     from brdf_reconstruct.core.brdf import merl, metrics
 
-    load = os.getloadavg()[0]
-    t0 = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch",
-                           str(job)], capture_output=True, text=True, env=dict(os.environ))
-    wall = time.perf_counter() - t0
+    done, wall, load = common.run_batch(job)
     (out.parent / "batch.log").write_text(done.stdout + done.stderr)
     result = {"exit_status": done.returncode, "wall_s": wall, "load_1min": load}
     if done.returncode != 0:
@@ -432,9 +412,9 @@ def run_material(material: str, work: pathlib.Path, seeds: list[int]) -> dict:
     from brdf_reconstruct.core.brdf import database, merl, metrics
     from testkit import capture
 
-    capture_dir, generated_s = ensure_capture(material)
+    capture_dir, generated_s = common.ensure_capture(material, **CAPTURE)
     truth = merl.read(capture_dir / "truth.binary")
-    spec = {s["name"]: s for s in database.heldout_specs()}[material]
+    spec = common.heldout_spec(material)
     made = database.make_table(spec)
     valid = np.isfinite(made) & np.isfinite(truth)
     work = work / material
@@ -558,17 +538,6 @@ def plot(results: dict, path: pathlib.Path, seeds: list[int]) -> None:
     plt.close(fig)
 
 
-def machine() -> dict:
-    import OpenImageIO as oiio
-    import pycolmap
-
-    return {"cpu_count": os.cpu_count(), "platform": platform.platform(),
-            "python": platform.python_version(), "numpy": np.__version__,
-            "openimageio": oiio.VERSION_STRING, "pycolmap": pycolmap.__version__,
-            "load_average_1_5_15_at_start": list(os.getloadavg()),
-            "note": "2 shared cores; wall times are indicative (load_1min per run)"}
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--materials", default=",".join(MATERIALS),
@@ -583,7 +552,7 @@ def main(argv=None) -> int:
 
     t0 = time.perf_counter()
     seeds = [int(x) for x in args.seeds.split(",")]
-    info = machine()
+    info = common.machine(NOTE)
     work = pathlib.Path(args.work or tempfile.mkdtemp(prefix="camera_inputs_"))
     if args.work and work.exists():
         shutil.rmtree(work)
@@ -614,18 +583,15 @@ def main(argv=None) -> int:
                      "exposure_factors": EXPOSURE_FACTORS,
                      "lenses": {k: {"k1": a, "k2": b, "p1": 0.0, "p2": 0.0}
                                 for k, (a, b) in LENSES.items()}},
-        "machine": info,
+        "machine": common.machine_end(info),
         "total_seconds": time.perf_counter() - t0,
         "materials": results,
     }
-    out = pathlib.Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(document, indent=1))
+    out = common.write_json(args.out, document, arguments=args)
     plot(results, out.with_suffix(".png"), seeds)
     print(f"wrote {out} and {out.with_suffix('.png')} in {document['total_seconds']:.0f} s")
     return 0
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(HERE))
     sys.exit(main())

@@ -9,21 +9,20 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import pathlib
-import platform
 import resource
 import subprocess
 import sys
 import tempfile
 import time
 
+import common
 import numpy as np
 
 from brdf_reconstruct.core.brdf import basis, database, merl, metrics, render
 from brdf_reconstruct.core.method import reconstruct, sampling
 
-RESULTS = pathlib.Path(__file__).resolve().parent / "results"
+RESULTS = common.RESULTS
 SAMPLE_COUNTS = (1, 2, 5, 10, 20, 40)
 LIGHT = render.REFERENCE_LIGHT
 SPHERE_RES = 96
@@ -46,7 +45,7 @@ def measure_build(n_components: int) -> dict:
     with tempfile.TemporaryDirectory() as cache:
         code = (
             "import time, resource, json;"
-            "from brdf_reconstruct.core import basis;"
+            "from brdf_reconstruct.core.brdf import basis;"
             "t=time.perf_counter();"
             f"b=basis.load_default(cache_dir={cache!r}, n_components={n_components});"
             "print(json.dumps({'seconds': time.perf_counter()-t,"
@@ -89,8 +88,7 @@ def main(argv=None) -> dict:
     seeds = (0, 1) if args.quick else (0, 1, 2, 3)
     RESULTS.mkdir(parents=True, exist_ok=True)
 
-    report: dict = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
-                                "platform": platform.platform()},
+    report: dict = {"machine": common.machine(),
                     "command": "make bench  (.venv/bin/python bench/core_bench.py)"}
     if not args.quick:
         print("basis build from scratch (child process) ...", flush=True)
@@ -165,7 +163,8 @@ def main(argv=None) -> dict:
     }
     report["heldout_materials"] = [s["name"] for s in heldout]
 
-    (RESULTS / "core.json").write_text(json.dumps(report, indent=1))
+    common.machine_end(report["machine"])
+    common.write_json(RESULTS / "core.json", report, arguments=args)
     plot(report, RESULTS / "core.png")
     print(json.dumps({"summary": summary, "floor": report["projection_floor_median"],
                       "timing": report["timing"]}, indent=1))

@@ -47,40 +47,27 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime
-import json
-import os
 import pathlib
-import platform
 import sys
 import time
 import traceback
 
+import capture_arrays as CA
+import common
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
+from brdf_reconstruct.core.bake import fitting, lobes
+from brdf_reconstruct.core.brdf import basis, database, merl, metrics, render
+from brdf_reconstruct.core.method import observations, pipeline, reliable
 
-import capture_arrays as CA  # noqa: E402
-
-from brdf_reconstruct.core import (  # noqa: E402
-    basis,
-    database,
-    lobe_fit,
-    merl,
-    metrics,
-    observations,
-    pipeline,
-    reliable,
-    render,
-)
-
-RESULTS = HERE / "results"
+RESULTS = common.RESULTS
 COMMAND = ".venv/bin/python bench/extremes_bench.py"
 NOISE = 0.01  # relative Gaussian noise per pixel and channel of the photos
 SEED = 0
 RESOLUTION = (240, 180)
 CAPTURE_VIEWS = (0, 2, 4)  # capture_arrays' default lit cameras of the 6-camera ring
+NOTE = ("shared machine: other jobs (Cycles renders, tests) ran on the same 2 cores during "
+        "the benchmark, so seconds are indicative, not best-case")
 
 
 def _light(theta_deg: float, azimuth_deg: float) -> tuple:
@@ -97,8 +84,8 @@ GRAZING_VIEWS = (2, 3, 4)
 
 _DARK_PLASTIC = [{"type": "lambert", "albedo": [0.05, 0.05, 0.05]},
                  {"type": "ggx", "alpha": 0.02, "fresnel": {"type": "dielectric", "eta": 1.5}}]
-_GLOSSY = next(s for s in database.heldout_specs() if s["name"] == "heldout_glossy_plastic")
-_NEAR_BLACK = next(s for s in database.heldout_specs() if s["name"] == "heldout_near_black")
+_GLOSSY = common.heldout_spec("heldout_glossy_plastic")
+_NEAR_BLACK = common.heldout_spec("heldout_near_black")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -176,20 +163,6 @@ def nonfinite(a: np.ndarray, where: np.ndarray | None = None) -> dict:
 
 def _ok(counts: dict) -> bool:
     return counts["nan"] == 0 and counts["inf"] == 0
-
-
-def machine() -> dict:
-    mem = {}
-    with open("/proc/meminfo") as f:
-        for line in f:
-            key, value = line.split(":")
-            if key in ("MemTotal", "MemAvailable"):
-                mem[key] = round(int(value.split()[0]) / 2**20, 2)
-    return {"cpu_count": os.cpu_count(), "platform": platform.platform(),
-            "python": platform.python_version(), "numpy": np.__version__,
-            "memory_gib": mem, "load_average_1_5_15_at_start": list(os.getloadavg()),
-            "note": "shared machine: other jobs (Cycles renders, tests) ran on the same "
-                    "2 cores during the benchmark, so seconds are indicative, not best-case"}
 
 
 def photos(arrays: dict, case: Case) -> tuple[list, dict]:
@@ -350,9 +323,9 @@ def run_case(B, case: Case, arrays: dict, settings: pipeline.PipelineSettings) -
             chosen = r
     if chosen is not None:  # the bake, on the (first) reconstructed region
         t0 = time.perf_counter()
-        fit = lobe_fit.fit(chosen.table)
+        fit = fitting.fit(chosen.table)
         seconds["bake"] = time.perf_counter() - t0
-        baked = lobe_fit.tabulate(fit.params)
+        baked = lobes.tabulate(fit.params)
         params = fit.params.to_dict()
         flat = np.array([*params["diffuse"], *params["sheen"]["color"], params["sheen"]["sigma"],
                          *(x for lobe in params["lobes"]
@@ -384,7 +357,7 @@ def main(argv=None) -> int:
                         help="4 trials per region instead of 16; writes extremes_quick.*")
     args = parser.parse_args(argv)
     t_start = time.perf_counter()
-    info = machine()
+    info = common.machine(NOTE)
     settings = pipeline.PipelineSettings(n_trials=4) if args.quick else \
         pipeline.PipelineSettings()
     print(f"extremes: {len(CASES)} cases, bunny {RESOLUTION[0]}x{RESOLUTION[1]}, "
@@ -419,7 +392,7 @@ def main(argv=None) -> int:
               + (f", removed as saturated {sat} (as NaN {clip['removed_as_nonfinite']}) of "
                  f"{sum(clip['clipped_foreground_pixels'])} clipped" if sat is not None else "")
               + f" ({res['wall_s']:.0f} s)", flush=True)
-    info["load_average_1_5_15_at_end"] = list(os.getloadavg())
+    common.machine_end(info)
     report = {
         "command": f"BRDF_RECONSTRUCT_CACHE=/work/main/.cache {COMMAND}"
                    + (" --quick" if args.quick else ""),
@@ -471,9 +444,8 @@ def main(argv=None) -> int:
         "cases": cases,
         "benchmark_wall_s": time.perf_counter() - t_start,
     }
-    RESULTS.mkdir(parents=True, exist_ok=True)
     stem = "extremes_quick" if args.quick else "extremes"
-    (RESULTS / f"{stem}.json").write_text(json.dumps(report, indent=1))
+    common.write_json(RESULTS / f"{stem}.json", report, arguments=args)
     plot(report, RESULTS / f"{stem}.png")
     print(f"wrote {RESULTS / stem}.json/.png in {report['benchmark_wall_s']:.0f} s; "
           + ("every output finite" if not failed else f"NON-FINITE or crashed: {failed}"),

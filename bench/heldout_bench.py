@@ -2,17 +2,18 @@
 
 For every held-out material (``core.brdf.database.heldout_specs``):
 
-1. The bunny capture of the demo (``bench/capture.py``: 6 views, 3 lit photos,
+1. The bunny capture of the demo (``testkit/capture.py``: 6 views, 3 lit photos,
    240 x 180, seed 0), generated once into
    ``basis.default_cache_dir() / "captures" / <key>`` (the key of
-   ``bench/demo.py``, ``capture.cache_folder``) and reused after.
+   ``bench/demo.py``, ``capture.cache_folder``; ``common.ensure_capture``) and
+   reused after.
 2. Ours, as a user runs it: ``python -m brdf_reconstruct.brdf_addon.batch`` on a
    copy of the capture's ``job.toml`` with ``preset = "BALANCED"`` under
    ``[settings]``; the table is read back from ``out/brdf_0.binary``. Timed: the
    batch subprocess's wall time, and the stage timings of ``out/report.json``.
-3. The peer: ``python bench/mitsuba_peer.py <capture>`` (a Principled BSDF fitted
-   by Mitsuba 3 inverse rendering, tabulated on the MERL grid; see that module
-   for the set-up), also a subprocess, timed the same way.
+3. The peer: ``python -m testkit.mitsuba_peer <capture>`` (``testkit/mitsuba_peer.py``:
+   a Principled BSDF fitted by Mitsuba 3 inverse rendering, tabulated on the MERL
+   grid; see that module for the set-up), also a subprocess, timed the same way.
 4. Both tables scored against ``truth.binary`` with ``metrics.sphere_error``
    (rendered-sphere relative RMSE, the headline) and ``metrics.brdf_log_rmse``.
 
@@ -41,44 +42,26 @@ import sys
 import tempfile
 import time
 
+import common
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-ROOT = HERE.parent
-RESULTS = HERE / "results"
+RESULTS = common.RESULTS
 QUICK_MATERIALS = ("heldout_gold_medium", "heldout_rough_plastic")
-
-
-def capture(material: str, views: int = 6, lit: int = 3, width: int = 240, height: int = 180,
-            seed: int = 0) -> tuple[pathlib.Path, bool]:
-    """The capture folder of ``material`` (generated if missing; the demo's cache,
-    ``capture.cache_folder``) and whether it was generated now."""
-    from testkit import capture as capture_module
-
-    settings = (material, views, lit, (width, height), seed)
-    folder = capture_module.cache_folder(*settings)
-    if (folder / "job.toml").is_file():
-        return folder, False
-    subprocess.run(capture_module.command(folder, *settings), check=True,
-                   stdout=subprocess.DEVNULL)
-    return folder, True
+NOTE = ("shared with other jobs: wall times are noisy; load_1min is the 1-minute load "
+        "average at each run's start")
 
 
 def run_ours(folder: pathlib.Path) -> dict:
     """Run the batch entry on the Balanced job; table, wall time and the report's
     stage timings (seconds)."""
     from brdf_reconstruct.core.brdf import merl
-    from testkit import capture as capture_module
+    from testkit import capture
 
-    job = capture_module.preset_job(folder, "BALANCED")
+    job = capture.preset_job(folder, "BALANCED")
     out = folder / "out"
     if out.exists():
         shutil.rmtree(out)
-    load = os.getloadavg()[0]
-    t0 = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch", str(job)],
-                          capture_output=True, text=True)
-    wall = time.perf_counter() - t0
+    done, wall, load = common.run_batch(job)
     if done.returncode != 0:
         raise RuntimeError(f"batch failed on {job}: {done.stderr.strip()[-500:]}")
     report = json.loads((out / "report.json").read_text())
@@ -89,8 +72,8 @@ def run_ours(folder: pathlib.Path) -> dict:
 
 
 def run_mitsuba(folder: pathlib.Path, iterations: int, spp: int) -> dict:
-    """Run ``bench/mitsuba_peer.py`` on the capture in a subprocess; table, wall
-    time and the peer's own summary (stage seconds, fitted parameters, loss curve,
+    """Run ``python -m testkit.mitsuba_peer`` on the capture in a subprocess; table,
+    wall time and the peer's own summary (stage seconds, fitted parameters, loss curve,
     camera check)."""
     from brdf_reconstruct.core.brdf import merl
 
@@ -98,7 +81,7 @@ def run_mitsuba(folder: pathlib.Path, iterations: int, spp: int) -> dict:
         table_path, summary_path = pathlib.Path(tmp) / "fit.binary", pathlib.Path(tmp) / "fit.json"
         load = os.getloadavg()[0]
         t0 = time.perf_counter()
-        done = subprocess.run([sys.executable, str(HERE / "mitsuba_peer.py"), str(folder),
+        done = subprocess.run([sys.executable, "-m", "testkit.mitsuba_peer", str(folder),
                                "--iterations", str(iterations), "--spp", str(spp),
                                "--out", str(table_path), "--json", str(summary_path)],
                               capture_output=True, text=True)
@@ -158,7 +141,6 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default=None, help="JSON path (default bench/results/...)")
     args = parser.parse_args(argv)
 
-    sys.path.insert(0, str(HERE))
     from brdf_reconstruct.core.brdf import database, merl, metrics
     from testkit import mitsuba_peer
 
@@ -176,7 +158,7 @@ def main(argv=None) -> int:
     spp = args.spp or mitsuba_peer.DEFAULT_SPP
     stem = "heldout_quick" if args.quick else "heldout"
     out = pathlib.Path(args.out) if args.out else RESULTS / f"{stem}.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
+    info = common.machine(NOTE)
 
     command = ".venv/bin/python bench/heldout_bench.py " + " ".join(
         sys.argv[1:] if argv is None else argv)
@@ -188,7 +170,8 @@ def main(argv=None) -> int:
     t_start = time.perf_counter()
     for i, material in enumerate(materials):
         t0 = time.perf_counter()
-        folder, generated = capture(material)
+        folder, generated_s = common.ensure_capture(material)
+        generated = generated_s is not None
         capture_s = time.perf_counter() - t0
         truth = merl.read(folder / "truth.binary")
         runs = {}
@@ -226,19 +209,18 @@ def main(argv=None) -> int:
                     "light": "job.toml: [0.35, -0.45, 0.82] normalised, irradiance 1"},
         "ours": {"entry": "python -m brdf_reconstruct.brdf_addon.batch job_balanced.toml",
                  "preset": "BALANCED"},
-        "mitsuba": {"entry": f"python bench/mitsuba_peer.py CAPTURE --iterations {iterations} "
-                             f"--spp {spp}",
+        "mitsuba": {"entry": f"python -m testkit.mitsuba_peer CAPTURE --iterations "
+                             f"{iterations} --spp {spp}",
                     "iterations": iterations, "spp": spp, "lr": mitsuba_peer.DEFAULT_LR,
                     "keys": list(mitsuba_peer.DEFAULT_KEYS),
                     "initial": {k: mitsuba_peer.INITIAL[k] for k in mitsuba_peer.DEFAULT_KEYS},
                     "variant": mitsuba_peer.VARIANT, "version": _mitsuba_version()},
         "checks": checks,
-        "machine": {"cores": os.cpu_count(), "note": "shared with other jobs: wall times are "
-                    "noisy; load_1min is the 1-minute load average at each run's start"},
+        "machine": common.machine_end(info),
         "total_seconds": time.perf_counter() - t_start,
         "medians": medians, "ratios": ratios, "materials": results,
     }
-    out.write_text(json.dumps(document, indent=1))
+    common.write_json(out, document, arguments=args)
     plot(results, out.with_suffix(".png"))
     print(json.dumps({"medians": medians, "ratios": ratios}, indent=1))
     print(f"wrote {out} and {out.with_suffix('.png')}")

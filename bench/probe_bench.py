@@ -1,9 +1,10 @@
 """The sphere probe in the field: angular error and uncertainty of the light found
 from Cycles photos of a chrome and a glossy black (clear-coat) sphere (METHOD §7).
 
-Scene: tests/test_blender_probe.py (a sphere 7 degrees off the optical axis of a
+Scene: ``testkit/probe_scene.py``, the one the probe tests use
+(``tests/blender/test_probe.py``): a sphere 7 degrees off the optical axis of a
 35 mm camera, in front of a lit grey wall that takes its shadow; a 0.75 degree
-Sun). Lights: 5 angles from the sphere-to-camera direction (10 to 75 degrees)
+Sun. Lights: 5 angles from the sphere-to-camera direction (10 to 75 degrees)
 x 4 rolls. Each photo is analysed as rendered (HDR) and clipped at 1.0 (as a
 camera would, the highlight's core flat), with the circle found by
 `locate_sphere` ("auto") and with the true circle ("true"), which separates the
@@ -23,17 +24,14 @@ Run: ``.venv/bin/python bench/probe_bench.py`` (``--quick``: 320 x 240 only).
 
 from __future__ import annotations
 
-import json
+import argparse
 import math
 import pathlib
-import sys
 import tempfile
 import time
 
+import common
 import numpy as np
-
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent / "tests"))
 
 ANGLES = (10.0, 30.0, 50.0, 65.0, 75.0)
 ROLLS = (30.0, 120.0, 210.0, 300.0)
@@ -87,7 +85,13 @@ def summarise(rows) -> dict:
     return out
 
 
-def main(quick: bool = False) -> dict:
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="320 x 240 only")
+    args = parser.parse_args(argv)
+    quick = args.quick
+    info = common.machine()
     from testkit import probe_scene as scene
 
     tmp = pathlib.Path(tempfile.mkdtemp())
@@ -115,16 +119,16 @@ def main(quick: bool = False) -> dict:
     result = {
         "what": "light direction from a Cycles photo of a probe sphere: error vs the Sun's "
                 "true direction, and light_probe's uncertainty (degrees)",
-        "scene": "tests/test_blender_probe.py: sphere 7 deg off axis, grey wall with its "
-                 "shadow, 0.75 deg Sun, chrome (Glossy 0.03) or black clear coat (0.03)",
+        "scene": "testkit/probe_scene.py (the probe tests' scene): sphere 7 deg off axis, "
+                 "grey wall with its shadow, 0.75 deg Sun, chrome (Glossy 0.03) or black "
+                 "clear coat (0.03)",
         "angles_deg": list(ANGLES), "rolls_deg": list(ROLLS),
         "summary": summary,
         "cases": cases,
         "total_s": time.perf_counter() - t_start,
+        "machine": common.machine_end(info),
     }
-    out = HERE / "results" / "light_probe.json"
-    out.parent.mkdir(exist_ok=True)
-    out.write_text(json.dumps(result, indent=1))
+    out = common.write_json(common.RESULTS / "light_probe.json", result, arguments=args)
     plot(result, out.with_suffix(".png"))
     for name, s in summary.items():
         print(f"{name}: " + ", ".join(
@@ -194,4 +198,4 @@ def plot(result: dict, path: pathlib.Path) -> None:
 
 
 if __name__ == "__main__":
-    main(quick="--quick" in sys.argv)
+    main()

@@ -18,23 +18,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import pathlib
+import os
+import subprocess
+import sys
 import time
 
+import common
 import numpy as np
 
-from brdf_reconstruct.core import (
-    basis,
-    database,
-    metrics,
-    observations,
-    reliable,
-    render,
-    selection,
-    synthetic,
-)
+from brdf_reconstruct.core.brdf import basis, database, metrics, render
+from brdf_reconstruct.core.method import observations, reliable, selection
+from testkit import synthetic
 
-RESULTS = pathlib.Path(__file__).resolve().parent / "results"
+RESULTS = common.RESULTS
 LIGHT = render.REFERENCE_LIGHT
 N_SAMPLES = 20
 N_TRIALS = 16  # the job file's default
@@ -121,38 +117,30 @@ def run_material(B, spec, resolution, seed):
     return errors, counts, times, normal_error, megapixels
 
 
-SPEED_CODE = """
-import json, sys, time
-sys.path.insert(0, {bench!r})
-import reliable_bench as RB
-from brdf_reconstruct.core.brdf import database
-from brdf_reconstruct.core.method import reliable
-table = database.make_table(database.heldout_specs()[4])
-truth, scan, photos = RB.capture(table, 512, 0)
-RB.observe_all(scan, photos)  # warm-up
-best = []
-for _ in range(5):
-    t = time.perf_counter()
-    samples = RB.observe_all(scan, photos)
-    reliable.reliable_candidates(samples)
-    best.append(time.perf_counter() - t)
-print(json.dumps({{"megapixels": len(photos) * 512 ** 2 / 1e6, "seconds": min(best)}}))
-"""
+def speed_child() -> dict:
+    """The timed part of :func:`measure_speed`, run in the pinned child process
+    (``--speed-child``): one warm-up, then the best of 5."""
+    table = database.make_table(database.heldout_specs()[4])
+    truth, scan, photos = capture(table, 512, 0)
+    observe_all(scan, photos)  # warm-up
+    best = []
+    for _ in range(5):
+        t = time.perf_counter()
+        samples = observe_all(scan, photos)
+        reliable.reliable_candidates(samples)
+        best.append(time.perf_counter() - t)
+    return {"megapixels": len(photos) * 512 ** 2 / 1e6, "seconds": min(best)}
 
 
 def measure_speed() -> dict:
     """Observations + reliable region on 4 photos of 512 x 512 from one camera, in a
-    child process pinned to one thread (BLAS/OpenMP), best of 5 (the machine is
-    shared: the best run is the one least disturbed)."""
-    import os
-    import subprocess
-    import sys
-
+    child process (this script, ``--speed-child``) pinned to one thread (BLAS/OpenMP),
+    best of 5 (the machine is shared: the best run is the one least disturbed)."""
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
                MKL_NUM_THREADS="1")
-    code = SPEED_CODE.format(bench=str(pathlib.Path(__file__).resolve().parent))
-    out = subprocess.run([sys.executable, "-c", code], env=env, check=True,
-                         capture_output=True, text=True)
+    out = subprocess.run([sys.executable, str(common.HERE / "reliable_bench.py"),
+                          "--speed-child"], env=env, check=True, capture_output=True,
+                         text=True)
     result = json.loads(out.stdout.strip().splitlines()[-1])
     result["megapixels_per_second"] = result["megapixels"] / result["seconds"]
     return result
@@ -166,14 +154,20 @@ def main(argv=None) -> dict:
     parser.add_argument("--scenes", type=int, default=N_SCENES,
                         help="independent scenes (blur noise, photo noise, trial seeds) "
                         "per material")
+    parser.add_argument("--speed-child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.speed_child:
+        print(json.dumps(speed_child()), flush=True)
+        return {}
     if args.speed_only:
         report = json.loads((RESULTS / "reliable.json").read_text())
         report["speed_one_thread"] = measure_speed()
         report["speed_command"] = ".venv/bin/python bench/reliable_bench.py --speed-only"
-        (RESULTS / "reliable.json").write_text(json.dumps(report, indent=1))
+        common.write_json(RESULTS / "reliable.json", report, arguments=args,
+                          invocation_key="speed_invocation")
         print("observation + reliable region, one thread:", report["speed_one_thread"])
         return report
+    info = common.machine()
     resolution = 128 if args.quick else 256
     specs = database.heldout_specs()[: 4 if args.quick else None]
     B = basis.load_default()
@@ -207,6 +201,7 @@ def main(argv=None) -> dict:
                 for m in per_material.values()]
     report = {
         "command": "make bench  (.venv/bin/python bench/reliable_bench.py)",
+        "machine": common.machine_end(info),
         "resolution": resolution, "n_samples": N_SAMPLES, "n_trials": N_TRIALS,
         "n_scenes": args.scenes,
         "ablation": {
@@ -221,8 +216,7 @@ def main(argv=None) -> dict:
         "speed_one_thread": measure_speed(),
         "materials": per_material,
     }
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "reliable.json").write_text(json.dumps(report, indent=1))
+    common.write_json(RESULTS / "reliable.json", report, arguments=args)
     plot(report, RESULTS / "reliable.png")
     print(json.dumps(report["ablation"], indent=1))
     print("observation + reliable region, one thread:", report["speed_one_thread"])

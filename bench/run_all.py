@@ -4,6 +4,8 @@ About 3 to 4 hours on the 2-core machine: reliable_bench (~45 min), tradeoff
 (~1 h), heldout with the Mitsuba peer (~20 min), scaling, extremes, SfM, core
 the Cycles KL samples, the sphere probe (~2 min) and camera-style inputs
 (~13 min). ``--quick`` runs the reduced version of each that has one.
+``bench/README.md`` is the index: which question each answers, its result file
+and headline number.
 """
 
 from __future__ import annotations
@@ -17,14 +19,17 @@ HERE = Path(__file__).resolve().parent
 SCRIPTS = ("core_bench.py", "reliable_bench.py", "cycles_kl_bench.py", "tradeoff.py",
            "extremes_bench.py", "scaling_bench.py", "sfm.py", "heldout_bench.py",
            "probe_bench.py", "camera_inputs_bench.py")
+NO_QUICK = ("cycles_kl_bench.py", "sfm.py", "camera_inputs_bench.py")  # no reduced version
+# arguments a script always gets (sfm.py prints only unless told where to write)
+ALWAYS = {"sfm.py": ["--out", str(HERE / "results" / "sfm.json")]}
 
 
 def main() -> int:
     quick = "--quick" in sys.argv[1:]
     failed = []
     for script in SCRIPTS:
-        args = ["--quick"] if quick and script not in ("cycles_kl_bench.py", "sfm.py",
-                                                         "camera_inputs_bench.py") else []
+        args = ALWAYS.get(script, []) + (["--quick"] if quick and script not in NO_QUICK
+                                         else [])
         print(f"== {script} {' '.join(args)}", flush=True)
         if subprocess.run([sys.executable, str(HERE / script), *args]).returncode != 0:
             failed.append(script)

@@ -46,20 +46,17 @@ import gc
 import json
 import os
 import pathlib
-import platform
 import resource
 import subprocess
 import sys
 import tempfile
 import time
 
+import common
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
-
-RESULTS = HERE / "results"
+HERE = common.HERE
+RESULTS = common.RESULTS
 COMMAND = ".venv/bin/python bench/scaling_bench.py"
 MATERIAL = "heldout_gold_medium"
 NOISE = 0.01
@@ -69,26 +66,16 @@ RING = 32  # cameras of the photo-count sweep
 RESOLUTIONS = ((576, 432), (816, 612), (1152, 864), (1632, 1224), (2304, 1728))
 RESOLUTION_VIEWS = (0, 2, 4)  # of the 6-camera ring, as the capture
 STAGES = ("observations", "reliable", "sampling", "reconstruction", "selection", "bake")
-GIB = 2**30
+GIB = common.GIB
+NOTE = ("shared machine: other jobs (Cycles renders, tests, other benchmarks) ran on the same "
+        "2 cores during the run; every point ran once, so the seconds carry that load (noise "
+        "of tens of percent), memory does not")
 
 
 # ------------------------------------------------------------------------- child side
-def _status_bytes(key: str, pid: int | str = "self") -> int:
-    """An entry of /proc/<pid>/status in bytes: ``VmRSS`` (resident memory now) or
-    ``VmHWM`` (its peak since the process's last exec); 0 if unreadable."""
-    try:
-        with open(f"/proc/{pid}/status") as f:
-            for line in f:
-                if line.startswith(key + ":"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 0
-
-
 def _rss_bytes() -> int:
     """Resident memory of this process now, bytes."""
-    return _status_bytes("VmRSS")
+    return common.proc_status_bytes("VmRSS")
 
 
 def _cpu_s() -> float:
@@ -102,7 +89,7 @@ def _peak_bytes() -> int:
     its own address space. Not ``ru_maxrss``: on Linux that one carries the parent's
     peak over a (v)fork + exec (the parent's Cycles renders reach several GiB), so it
     reads the same for every point; it is reported as ``ru_maxrss`` for reference."""
-    return _status_bytes("VmHWM")
+    return common.proc_status_bytes("VmHWM")
 
 
 def _ru_maxrss_bytes() -> int:
@@ -170,28 +157,6 @@ def child(spec: dict) -> dict:
 
 
 # ------------------------------------------------------------------------ parent side
-def machine() -> dict:
-    return {"cpu_count": os.cpu_count(), "platform": platform.platform(),
-            "python": platform.python_version(), "numpy": np.__version__,
-            "memory_total_gib": round(_meminfo("MemTotal") / GIB, 2),
-            "memory_available_gib_at_start": round(_meminfo("MemAvailable") / GIB, 2),
-            "load_average_1_5_15_at_start": list(os.getloadavg()),
-            "threads": {k: os.environ.get(k) for k in (
-                "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")},
-            "note": "shared machine: other jobs (Cycles renders, tests, other benchmarks) "
-                    "ran on the same 2 cores during the run; every point ran once, so the "
-                    "seconds carry that load (noise of tens of percent), memory does not"}
-
-
-def _meminfo(key: str) -> int:
-    """A /proc/meminfo entry in bytes."""
-    with open("/proc/meminfo") as f:
-        for line in f:
-            if line.startswith(key + ":"):
-                return int(line.split()[1]) * 1024
-    return 0
-
-
 def prepare(workdir: pathlib.Path, tag: str, table: np.ndarray, resolution, n_views: int,
             lit_views, cache: bool) -> tuple[list[str], dict]:
     """Render (or load) the G-buffers, shade the photos, write one ``.npz`` per lit view
@@ -229,7 +194,7 @@ def run_child(spec: dict, budget: int, poll_s: float = 0.2) -> dict:
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     watched_peak, killed = 0, False
     while proc.poll() is None:
-        rss = _status_bytes("VmRSS", proc.pid)
+        rss = common.proc_status_bytes("VmRSS", proc.pid)
         watched_peak = max(watched_peak, rss)
         if rss > budget:
             proc.kill()
@@ -266,7 +231,7 @@ def sweep(name: str, points: list[dict], budget: int) -> list[dict]:
     done = []
     for pt in points:
         predicted = predict_peak(done, pt["megapixels"])
-        free = _meminfo("MemAvailable")
+        free = common.meminfo_bytes("MemAvailable")
         limit = min(budget, free - 2 * GIB)
         row = dict(pt, predicted_peak_gib=None if predicted is None else predicted / GIB)
         if predicted is not None and predicted > limit:
@@ -388,7 +353,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.refit:
         stem = "scaling_quick" if args.quick else "scaling"
-        write(summarise(json.loads((RESULTS / f"{stem}.json").read_text())), stem)
+        write(summarise(json.loads((RESULTS / f"{stem}.json").read_text())), stem, args,
+              invocation_key="refit_invocation")
         return 0
     if args.child:
         print(json.dumps(child(json.loads(args.child))), flush=True)
@@ -396,13 +362,13 @@ def main(argv=None) -> int:
     from brdf_reconstruct.core.brdf import database
 
     t_start = time.perf_counter()
-    info = machine()
+    info = common.machine(NOTE)
     budget = int(args.max_gib * GIB)
     counts = PHOTO_COUNTS[:3] if args.quick else PHOTO_COUNTS
     ring = 4 if args.quick else RING
     photo_res = RESOLUTIONS[0] if args.quick else PHOTO_RESOLUTION
     resolutions = RESOLUTIONS[:2] if args.quick else RESOLUTIONS
-    spec = next(s for s in database.heldout_specs() if s["name"] == MATERIAL)
+    spec = common.heldout_spec(MATERIAL)
     table = database.make_table(spec)
     cache_root = pathlib.Path(os.environ.get("BRDF_RECONSTRUCT_CACHE", HERE.parent / ".cache"))
     cache_root.mkdir(parents=True, exist_ok=True)
@@ -437,7 +403,7 @@ def main(argv=None) -> int:
         photos_rows = sweep("photos", photo_points, budget)
         print("scaling: pixel sweep", flush=True)
         pixel_rows = sweep("pixels", res_points, budget)
-    info["load_average_1_5_15_at_end"] = list(os.getloadavg())
+    common.machine_end(info)
     report = {
         "command": f"BRDF_RECONSTRUCT_CACHE=/work/main/.cache {COMMAND}"
                    + (" --quick" if args.quick else "")
@@ -477,8 +443,7 @@ def main(argv=None) -> int:
         "cycles_ring_render": ring_facts,
         "benchmark_wall_s": time.perf_counter() - t_start,
     }
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    write(summarise(report), "scaling_quick" if args.quick else "scaling")
+    write(summarise(report), "scaling_quick" if args.quick else "scaling", args)
     return 0
 
 
@@ -501,9 +466,12 @@ def summarise(report: dict) -> dict:
     return report
 
 
-def write(report: dict, stem: str) -> None:
-    """``bench/results/<stem>.json`` and ``.png``; prints the growth sentences."""
-    (RESULTS / f"{stem}.json").write_text(json.dumps(report, indent=1))
+def write(report: dict, stem: str, args, invocation_key: str = "invocation") -> None:
+    """``bench/results/<stem>.json`` (through ``common.write_json``, the command and
+    ``args`` recorded under ``invocation_key``) and ``.png``; prints the growth
+    sentences."""
+    common.write_json(RESULTS / f"{stem}.json", report, arguments=args,
+                      invocation_key=invocation_key)
     plot(report, RESULTS / f"{stem}.png")
     print(report["growth"]["photos"])
     print(report["growth"]["pixels"])

@@ -38,18 +38,16 @@ import dataclasses
 import datetime
 import json
 import multiprocessing
-import os
 import pathlib
-import platform
 import sys
 import time
 
+import common
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-RESULTS = HERE / "results"
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
+RESULTS = common.RESULTS
+NOTE = ("2-core machine shared with other jobs during the run; wall times are noisy, "
+        "compare within this run")
 
 MATERIALS = ("heldout_gold_medium", "heldout_rough_plastic")  # glossy metal, rough dielectric
 SEEDS = (0, 1)
@@ -119,12 +117,6 @@ def _basis(components: int):
     return basis.load_default(n_components=components)
 
 
-def _spec(name: str) -> dict:
-    from brdf_reconstruct.core.brdf import database
-
-    return {s["name"]: s for s in database.heldout_specs()}[name]
-
-
 def _cycles_select(point: Point, arrays, inputs, candidates):
     """(winner, seconds): KL of Cycles renders of each baked candidate (the
     extension's accurate path, ``brdf_addon.cycles_select``)."""
@@ -156,7 +148,7 @@ def run_point(point: Point) -> dict:
 
     arrays = capture_arrays.gbuffers(
         resolution=point.resolution, scan_options=EXACT_SCAN if point.scan == "exact" else None)
-    truth = database.make_table(_spec(point.material))
+    truth = database.make_table(common.heldout_spec(point.material))
     B = _basis(point.components)
     inputs = capture_arrays.photo_inputs(arrays, truth, noise=point.noise, seed=point.seed,
                                          views=range(point.photos))
@@ -204,10 +196,8 @@ def run_point(point: Point) -> dict:
 
 def _peak_rss_mb() -> float:
     """This process's own peak resident memory (VmHWM of /proc/self/status), MB."""
-    for line in pathlib.Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmHWM:"):
-            return int(line.split()[1]) / 1024.0
-    return float("nan")
+    peak = common.proc_status_bytes("VmHWM")
+    return peak / 2**20 if peak else float("nan")
 
 
 def _pool():
@@ -361,12 +351,13 @@ def run_ablation(quick: bool) -> dict:
     }
 
 
-def _meta(argv) -> dict:
+def _meta(argv, args, info: dict) -> dict:
+    """What a part records about its run: the command, the date, the machine (``info``,
+    taken when the run started; load at the part's end added) and the invocation."""
     return {"command": " ".join([".venv/bin/python", "bench/tradeoff.py", *argv]),
-            "date": datetime.date.today().isoformat(), "cpus": os.cpu_count(),
-            "platform": platform.platform(),
-            "note": "2-core machine shared with other jobs during the run; wall times "
-                    "are noisy, compare within this run"}
+            "date": datetime.date.today().isoformat(),
+            "machine": common.machine_end(dict(info)),
+            "invocation": common.invocation(args)}
 
 
 def plot_tradeoff(report: dict, path: pathlib.Path) -> None:
@@ -438,7 +429,7 @@ def main(argv=None) -> int:
     parser.add_argument("--part", choices=("all", "sweep", "presets", "ablation", "summary"),
                         default="all")
     args = parser.parse_args(argv)
-    RESULTS.mkdir(exist_ok=True)
+    info = common.machine(NOTE)
     t0 = time.perf_counter()
     import capture_arrays
 
@@ -452,7 +443,7 @@ def main(argv=None) -> int:
         points, axes = sweep_points(args.quick)
         rows = _run_all(points, "sweep")
         configs = [c for cs in axes.values() for c in cs]
-        report.update(meta=_meta(argv), base=dataclasses.asdict(BASE), rows=rows,
+        report.update(meta=_meta(argv, args, info), base=dataclasses.asdict(BASE), rows=rows,
                       summary=summarise(rows, list(dict.fromkeys(configs))),
                       axes={a: [c.label() for c in cs] for a, cs in axes.items()})
         report["pareto"] = pareto(report["summary"])
@@ -477,16 +468,16 @@ def main(argv=None) -> int:
         summary = summarise(rows, list(configs.values()))
         report["presets"] = {name: s for name, s in zip(configs, summary, strict=True)}
         report["preset_rows"] = rows
-        report["presets_meta"] = _meta(argv)
+        report["presets_meta"] = _meta(argv, args, info)
     if args.part in ("all", "ablation"):
         ablation = run_ablation(args.quick)
-        ablation["meta"] = _meta(argv)
-        (RESULTS / f"ablation_bunny{tag}.json").write_text(json.dumps(ablation, indent=1))
+        ablation["meta"] = _meta(argv, args, info)
+        common.write_json(RESULTS / f"ablation_bunny{tag}.json", ablation, arguments=args)
         plot_ablation(ablation, RESULTS / f"ablation_bunny{tag}.png")
         print(f"ablation: all constraints + KL / no constraints = "
               f"{ablation['ratio_all_kl_to_none']:.2f}")
     if "summary" in report:
-        path.write_text(json.dumps(report, indent=1))
+        common.write_json(path, report, arguments=args)
         plot_tradeoff(report, RESULTS / f"tradeoff{tag}.png")
     print(f"done in {time.perf_counter() - t0:.0f} s; wrote {path}")
     return 0

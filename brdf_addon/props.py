@@ -206,7 +206,7 @@ class BRDFSettings(PropertyGroup):
         items=[("FAST", "Fast", HINTS["FAST"]), ("BALANCED", "Balanced", HINTS["BALANCED"]),
                ("ACCURATE", "Accurate", HINTS["ACCURATE"]), ("CUSTOM", "Custom", "Own values")])
     samples: IntProperty(name="BRDF Samples", default=_BALANCED["samples"], min=1, soft_max=200,
-                         description="Condition-optimal BRDF samples (directions) per trial (paper: 6); not Cycles samples")
+                         description="Condition-optimal BRDF samples per trial (paper: 6)")
     trials: IntProperty(name="Trials", default=_BALANCED["trials"], min=1, soft_max=128,
                         description="Random-subset reconstructions; KL picks one")
     subset_fraction: FloatProperty(name="Subset Fraction",

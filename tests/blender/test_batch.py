@@ -38,8 +38,7 @@ def job_dir(tmp_path_factory):
     BS.build(tmp)
     (tmp / "other.exr").write_bytes((tmp / "view0.exr").read_bytes())  # matches no camera
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp / "scene.blend"))
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    return tmp
+    return tmp  # each test then starts in an empty file (empty_scene): never saved over
 
 
 def _run(job_dir, text, name="job.toml"):

@@ -17,11 +17,11 @@ BUNNY = capture.DATA / "stanford-bunny.obj"
 
 
 @pytest.fixture(scope="module")
-def bunny():
-    """The bunny and its scan; tests that use it skip without ../shared/data."""
+def bunny(shared_scene):
+    """The bunny and its scan, loaded once into the module's shared scene (the tests
+    that use it see each other's cameras); they skip without ../shared/data."""
     if not BUNNY.is_file():
         pytest.skip(f"{BUNNY} not found")
-    bpy.ops.wm.read_factory_settings(use_empty=True)
     truth = capture.load_ground_truth(BUNNY)
     scan = capture.photogrammetry_mesh(truth, seed=3)
     return truth, scan
@@ -79,7 +79,6 @@ def test_fallback_ground_truth_without_the_data(monkeypatch):
     """Without ../shared/data the capture falls back to a subdivided Suzanne: unit
     radius at the origin, smooth, many faces (CI may run without the data)."""
     monkeypatch.setattr(capture, "DATA", Path("/nonexistent"))
-    bpy.ops.wm.read_factory_settings(use_empty=True)
     truth = capture.default_ground_truth()
     co = _co(truth)
     assert len(truth.data.polygons) > 5000 and all(p.use_smooth for p in truth.data.polygons)

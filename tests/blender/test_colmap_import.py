@@ -25,6 +25,9 @@ from testkit import synthetic  # noqa: E402
 
 pycolmap = pytest.importorskip("pycolmap")
 
+# the operator (and the rest of the add-on) registered for every test
+pytestmark = pytest.mark.usefixtures("registered")
+
 OP = import_colmap_op.BRDF_OT_import_colmap
 
 
@@ -59,20 +62,6 @@ def models(tmp_path_factory):
     assert {p.suffix for p in (root / "bin").iterdir()} == {".bin"}
     assert {p.suffix for p in (root / "txt").iterdir()} == {".txt"}
     return {"bin": root / "bin", "txt": root / "txt"}
-
-
-@pytest.fixture(autouse=True)
-def operator_registered():
-    bpy.ops.wm.read_homefile(use_empty=True)
-    registered_here = not OP.is_registered
-    if registered_here:
-        bpy.utils.register_class(OP)
-    try:
-        yield
-    finally:
-        if registered_here:
-            bpy.utils.unregister_class(OP)
-        bpy.ops.wm.read_homefile(use_empty=True)
 
 
 def _imported_cameras(collection_name=colmap_import.COLLECTION_NAME):

@@ -11,7 +11,8 @@ bpy = pytest.importorskip("bpy")
 import brdf_reconstruct  # noqa: E402
 from brdf_reconstruct.brdf_addon import (  # noqa: E402
     cycles_select,
-    photo_list,  # noqa: E402
+    gathering,
+    photo_list,
     runner,
 )
 from brdf_reconstruct.core.brdf import database, merl  # noqa: E402
@@ -26,28 +27,25 @@ def _lambert(albedo):
 
 
 @pytest.fixture
-def tiny(tmp_path):
+def tiny(tmp_path, request):
     built = BS.build(tmp_path)
-    brdf_reconstruct.register()
+    request.getfixturevalue("registered")  # after the build, which reads a new file
     BS.settings_for_tiny_runs(built, tmp_path / "out")
     (p,), _ = photo_list.add_photos(built["scene"], [str(built["photo"])])
     p.irradiance = (BS.lit_irradiance(),) * 3
-    try:
-        yield built
-    finally:
-        brdf_reconstruct.unregister()
+    return built
 
 
 def test_both_paths_pick_the_true_material(tiny):
     scene = tiny["scene"]
-    inputs = runner.gather(scene)
+    inputs = gathering.gather(scene)
     gold = next(s for s in database.heldout_specs() if s["name"] == "heldout_gold_medium")
     tables = [_lambert(0.25), _lambert(BS.ALBEDO), database.make_table(gold),
               _lambert(0.9)]
     fast = selection.select_by_kl(tables, pipeline.region_views(inputs, 0))
     blocks = {k: len(getattr(bpy.data, k)) for k in ("materials", "node_groups", "objects",
                                                      "scenes", "meshes", "lights")}
-    kl, winner = cycles_select.select_by_cycles(scene, inputs, 0, tables, samples=16)
+    kl, winner = cycles_select.select_by_cycles(scene, inputs, 0, tables, render_samples=16)
     assert fast.winner == winner == 1
     # the same ranking, and a clear margin on both paths
     assert list(np.argsort(fast.kl)) == list(np.argsort(kl))
@@ -61,7 +59,7 @@ def test_reconstruct_with_the_cycles_path_records_both(tiny):
     scene = tiny["scene"]
     scene.brdf.kl_path = "CYCLES"
     scene.brdf.kl_samples = 16
-    report = runner.ReconstructRun(scene, threaded=False, bake=False).run()
+    report = runner.Run(scene, threaded=False, bake=False).run()
     sel = report["regions"][0]["selection"]
     assert sel["path"] == "cycles" and sel["cycles_samples"] == 16
     assert len(sel["fast_kl"]) == len(report["regions"][0]["kl"]) == 2

@@ -15,18 +15,13 @@ import bmesh  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
 from brdf_reconstruct.brdf_addon import gbuffer  # noqa: E402
+from brdf_reconstruct.core.method import gbuffers  # noqa: E402
 
 CENTER = np.array([0.3, -0.2, 0.1])
 RADIUS = 1.0
 # Icosphere of 6 subdivision levels (20480 faces, edges of ~2.2 degrees): its flat
 # faces sag up to ~2e-4 R inside the sphere (measured per mesh by _sag).
 SUBDIVISIONS = 6
-
-
-@pytest.fixture(autouse=True)
-def empty_scene():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    yield
 
 
 def _link(obj):
@@ -324,7 +319,7 @@ def test_more_samples_stay_near_the_pixel_centre():
     cam = _camera((0.3, -6.0, 2.1), CENTER)
     sphere = _sphere()
     one = gbuffer.render_gbuffers(sphere, cam, [0.0, 0.0, 1.0])
-    four = gbuffer.render_gbuffers(sphere, cam, [0.0, 0.0, 1.0], samples=4)
+    four = gbuffer.render_gbuffers(sphere, cam, [0.0, 0.0, 1.0], render_samples=4)
     edge = _boundary(one.mask)
     assert not np.any((one.mask != four.mask) & ~edge)
     inner = one.mask & ~edge
@@ -412,7 +407,7 @@ def test_invalid_arguments():
     with pytest.raises(ValueError, match="light_direction"):
         gbuffer.render_gbuffers(sphere, cam, [0.0, np.nan, 1.0])
     with pytest.raises(ValueError, match="samples"):
-        gbuffer.render_gbuffers(sphere, cam, [0.0, 0.0, 1.0], samples=0)
+        gbuffer.render_gbuffers(sphere, cam, [0.0, 0.0, 1.0], render_samples=0)
     with pytest.raises(ValueError, match="resolution"):
         gbuffer.render_gbuffers(sphere, cam, [0.0, 0.0, 1.0], resolution=(0, 16))
     with pytest.raises(ValueError, match="device"):
@@ -440,8 +435,8 @@ def test_nonfinite_passes_become_background():
     channels[f"{layer}.Diffuse Direct.G"][0, 2] = np.nan
     channels[f"{layer}.brdf_region.X"][1, 0] = -np.inf
     channels[f"{layer}.Combined.A"][1, 1] = np.nan
-    g = gbuffer._assemble(channels, light=np.array([0.0, 0.0, 1.0]), slots=2,
-                          center=np.zeros(3), ortho=False, window=None)
+    g = gbuffers.decode(channels, light=np.array([0.0, 0.0, 1.0]), slots=2,
+                        center=np.zeros(3), ortho=False, window=None)
     assert g.mask.tolist() == [[False, False, False], [False, False, True]]
     assert np.all(g.region == [[-1, -1, -1], [-1, -1, 1]])
     for a in (g.normal, g.position, g.visibility):

@@ -57,12 +57,6 @@ def _snapshot():
                     scene.render.resolution_x, sorted(o.name for o in scene.objects))
 
 
-@pytest.fixture(autouse=True)
-def empty_file():
-    bpy.ops.wm.read_homefile(use_empty=True)
-    yield
-
-
 @pytest.fixture(scope="module")
 def heldout_fit(heldout_tables):
     # Beckmann coat over a diffuse base: every closure kind gets used.

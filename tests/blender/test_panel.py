@@ -90,8 +90,8 @@ def _check_icon(icon):
 
 
 @pytest.fixture
-def scene(registered_scene):
-    return registered_scene
+def scene(registered):
+    return registered
 
 
 def _draw_all(context):

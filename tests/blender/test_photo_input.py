@@ -16,19 +16,21 @@ bpy = pytest.importorskip("bpy")
 from image_files import write_image  # noqa: E402
 
 from brdf_reconstruct.brdf_addon import (  # noqa: E402
+    gathering,
     light_sources,
     photo_list,
-    runner,  # noqa: E402
 )
 from brdf_reconstruct.core.capture import photo_io, sun  # noqa: E402
 from testkit import blender_scene as BS  # noqa: E402
 
 
 @pytest.fixture
-def tiny(tmp_path):
-    with BS.registered(tmp_path) as built:
-        built["linear"] = photo_io.read_photo(built["photo"])
-        yield built
+def tiny(tmp_path, request):
+    built = BS.build(tmp_path)
+    request.getfixturevalue("registered")  # after the build, which reads a new file
+    BS.settings_for_tiny_runs(built, tmp_path / "out")
+    built["linear"] = photo_io.read_photo(built["photo"])
+    return built
 
 
 
@@ -114,7 +116,7 @@ def test_scaled_photo_is_allowed_and_said(tiny):
     path = write_image(tiny["dir"] / "twice.exr", twice, oiio.FLOAT)
     _entry(tiny, tiny["photo"])
     _entry(tiny, path)
-    inputs, capture = runner.gather_capture(tiny["scene"])
+    inputs, capture = gathering.gather_capture(tiny["scene"])
     assert "scaled" not in capture["photos"][0]
     assert inputs[1].photo.shape == (96, 96, 3) and inputs[1].normal.shape == (96, 96, 3)
     assert "2 times its camera's 48x48" in capture["photos"][1]["scaled"]
@@ -138,7 +140,7 @@ def test_exposure_from_exif_brings_photos_to_one_scale(tiny):
                      ("Exif:PhotographicSensitivity", 200)])
     _entry(tiny, first)
     _entry(tiny, second)
-    inputs, capture = runner.gather_capture(tiny["scene"])
+    inputs, capture = gathering.gather_capture(tiny["scene"])
     assert capture["photos"][0]["exposure_scale"] == pytest.approx(1.0)
     # EXIF stores 1/400 s as a float32: the scale is 1/2 to float32 precision
     assert capture["photos"][1]["exposure_scale"] == pytest.approx(0.5, rel=1e-6)
@@ -147,7 +149,7 @@ def test_exposure_from_exif_brings_photos_to_one_scale(tiny):
     np.testing.assert_allclose(inputs[1].photo[seen], inputs[0].photo[seen], rtol=1e-6)
     # a user's own scale wins over the EXIF
     tiny["scene"].brdf.photos[1].exposure = 3.0
-    inputs, capture = runner.gather_capture(tiny["scene"])
+    inputs, capture = gathering.gather_capture(tiny["scene"])
     assert capture["photos"][1]["exposure_scale"] == pytest.approx(3.0)
 
 
@@ -163,7 +165,7 @@ def test_irradiance_ratio_from_a_diffuse_region_of_the_scan(tiny):
         p = _entry(tiny, path)
         p.reference_kind, p.reference_mask_path = "SCAN", str(everywhere)
     tiny["scene"].brdf.photos[1].irradiance = (1.0, 1.0, 1.0)  # ignored: the reference wins
-    inputs, capture = runner.gather_capture(tiny["scene"])
+    inputs, capture = gathering.gather_capture(tiny["scene"])
     # the first photo keeps its own (a float32 property)
     np.testing.assert_allclose(inputs[0].irradiance, BS.lit_irradiance(), rtol=1e-7)
     np.testing.assert_allclose(inputs[1].irradiance, 2.5 * BS.lit_irradiance(), rtol=0.01)
@@ -171,7 +173,7 @@ def test_irradiance_ratio_from_a_diffuse_region_of_the_scan(tiny):
 
 def test_without_references_irradiance_is_assumed_equal_and_said(tiny):
     _entry(tiny, tiny["photo"])
-    _, capture = runner.gather_capture(tiny["scene"])
+    _, capture = gathering.gather_capture(tiny["scene"])
     assert any("assumed equal" in line for line in capture["irradiance"])
 
 
@@ -181,7 +183,7 @@ def test_saturated_pixels_of_an_8bit_photo_are_excluded_and_counted(tiny):
     codes = _srgb_8bit(tiny["linear"] * 3.0)
     path = write_image(tiny["dir"] / "hot.png", codes, oiio.UINT8)
     _entry(tiny, path)
-    inputs, capture = runner.gather_capture(tiny["scene"])
+    inputs, capture = gathering.gather_capture(tiny["scene"])
     clipped = np.any(codes == 255, axis=-1) & (inputs[0].region >= 0)
     assert clipped.sum() > 20
     assert capture["photos"][0]["saturated_pixels"] == int(clipped.sum())
@@ -196,10 +198,10 @@ def test_saturated_pixels_of_an_8bit_photo_are_excluded_and_counted(tiny):
 
 def test_silhouette_margin_shrinks_the_mask(tiny):
     p = _entry(tiny, tiny["photo"])
-    inputs, _ = runner.gather_capture(tiny["scene"])
+    inputs, _ = gathering.gather_capture(tiny["scene"])
     assert inputs[0].mask is None
     p.silhouette_margin = 2
-    inputs, _ = runner.gather_capture(tiny["scene"])
+    inputs, _ = gathering.gather_capture(tiny["scene"])
     silhouette = inputs[0].region >= 0
     assert inputs[0].mask.sum() < silhouette.sum() and not (inputs[0].mask & ~silhouette).any()
     # two pixels in from a disc of radius r leaves about pi (r - 2)^2
@@ -271,7 +273,7 @@ def test_distorted_photo_is_undistorted_onto_the_blender_camera(tiny):
     cam["brdf_colmap_distorted"], cam["brdf_colmap_camera_model"] = True, "SIMPLE_RADIAL"
     cam["brdf_colmap_params"] = params
     _entry(tiny, path)
-    inputs, capture = runner.gather_capture(tiny["scene"])
+    inputs, capture = gathering.gather_capture(tiny["scene"])
     assert capture["photos"][0]["undistorted"].startswith("SIMPLE_RADIAL")
     # away from the outline, where resampling the edge twice blurs it whatever the lens
     inside = ndimage.binary_erosion(inputs[0].region >= 0, iterations=3)
@@ -302,12 +304,12 @@ def test_cameras_from_another_importer_use_the_scene_render_size(tiny):
     camera.name = "view0.jpg"
     added, unmatched = photo_list.add_photos(tiny["scene"], [str(tiny["photo"])])
     assert unmatched == [] and added[0].camera == camera
-    inputs, capture = runner.gather_capture(tiny["scene"])
+    inputs, capture = gathering.gather_capture(tiny["scene"])
     assert inputs[0].photo.shape == (48, 48, 3) and "scaled" not in capture["photos"][0]
     tiny["scene"].render.resolution_x = 64  # 64 x 48 is not the photo's 48 x 48
     with pytest.raises(ValueError, match=r"48x48 pixels but its camera view0\.jpg is 64x48 "
                                          r"\(scene render size\)"):
-        runner.gather_capture(tiny["scene"])
+        gathering.gather_capture(tiny["scene"])
 
 
 def test_a_new_photo_takes_the_last_ones_light_with_its_date_and_place(tiny):
@@ -330,4 +332,4 @@ def test_a_distorted_camera_without_lens_parameters_is_one_clear_error(tiny):
     cam["brdf_colmap_distorted"], cam["brdf_colmap_camera_model"] = True, "OPENCV"
     _entry(tiny, tiny["photo"])
     with pytest.raises(ValueError, match="no stored lens parameters; import its COLMAP"):
-        runner.gather_capture(tiny["scene"])
+        gathering.gather_capture(tiny["scene"])

@@ -13,8 +13,8 @@ from brdf_reconstruct.brdf_addon.presets import PRESETS  # noqa: E402
 
 
 @pytest.fixture
-def scene(registered_scene):
-    return registered_scene
+def scene(registered):
+    return registered
 
 
 def _values(settings, keys):

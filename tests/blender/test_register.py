@@ -11,15 +11,6 @@ def _panel_class():
     return getattr(bpy.types, "BRDF_PT_main", None)
 
 
-@pytest.fixture
-def registered():
-    brdf_reconstruct.register()
-    try:
-        yield
-    finally:
-        brdf_reconstruct.unregister()
-
-
 def _assert_unregistered():
     assert _panel_class() is None
     assert not hasattr(bpy.types.Scene, "brdf")

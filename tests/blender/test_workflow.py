@@ -14,9 +14,10 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from brdf_reconstruct.brdf_addon import (  # noqa: E402
+    gathering,
     light_sources,
     photo_list,
-    runner,  # noqa: E402
+    runner,
 )
 from brdf_reconstruct.core.brdf import merl  # noqa: E402
 from brdf_reconstruct.core.capture import light_probe, photo_io, sun  # noqa: E402
@@ -25,9 +26,11 @@ from testkit import blender_scene as BS  # noqa: E402
 
 
 @pytest.fixture
-def tiny(tmp_path):
-    with BS.registered(tmp_path) as built:
-        yield built
+def tiny(tmp_path, request):
+    built = BS.build(tmp_path)
+    request.getfixturevalue("registered")  # after the build, which reads a new file
+    BS.settings_for_tiny_runs(built, tmp_path / "out")
+    return built
 
 
 def _add_photo(built):
@@ -210,14 +213,14 @@ def test_mesh_without_faces_is_one_clear_error(tiny):
     tiny["scene"].collection.objects.link(obj)
     tiny["scene"].brdf.target = obj
     with pytest.raises(ValueError, match="mesh without faces"):
-        runner.check_scene(tiny["scene"])
+        gathering.check_scene(tiny["scene"])
 
 
 def test_cancel_leaves_the_scene_unchanged(tiny):
     _add_photo(tiny)
     before = {k: len(getattr(bpy.data, k)) for k in ("materials", "images", "node_groups",
                                                      "objects", "scenes", "lights")}
-    run = runner.ReconstructRun(tiny["scene"], threaded=True)
+    run = runner.Run(tiny["scene"], threaded=True)
     assert run.step() is False  # the photo's G-buffers
     run.cancel()
     with pytest.raises(pipeline.Cancelled):
@@ -230,11 +233,11 @@ def test_cancel_leaves_the_scene_unchanged(tiny):
 
 def test_worker_thread_run_matches_synchronous_run(tiny):
     _add_photo(tiny)
-    a = runner.ReconstructRun(tiny["scene"], threaded=True, bake=False)
+    a = runner.Run(tiny["scene"], threaded=True, bake=False)
     while not a.step():
         pass
     kl_threaded = a.report["regions"][0]["kl"]
-    b = runner.ReconstructRun(tiny["scene"], threaded=False, bake=False).run()
+    b = runner.Run(tiny["scene"], threaded=False, bake=False).run()
     assert b["regions"][0]["kl"] == kl_threaded  # same seed, same result
 
 
@@ -284,6 +287,6 @@ def test_face_sets_are_regions(tiny):
     ids = np.where(centres.reshape(-1, 3)[:, 0] < 0, 4, 9).astype(np.int32)
     mesh.attributes.new(".sculpt_face_set", "INT", "FACE").data.foreach_set("value", ids)
     tiny["scene"].brdf.region_mode = "FACE_SET"
-    report = runner.ReconstructRun(tiny["scene"], threaded=False, bake=False).run()
+    report = runner.Run(tiny["scene"], threaded=False, bake=False).run()
     assert [(r["region"], r["label"], r["status"]) for r in report["regions"]] == [
         (4, "face set 4", "ok"), (9, "face set 9", "ok")]

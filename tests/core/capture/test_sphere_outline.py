@@ -1,10 +1,10 @@
 """The probe sphere's image circle (core.capture.sphere_outline): fitted to a mask, found in
 the photo itself, a drawn circle snapped to the outline. Synthetic renders with a
-known sphere and light, from tests/test_core_light_probe.py."""
+known sphere and light, from probe_images.py (shared with test_light_probe.py)."""
 
 import numpy as np
 import pytest
-from test_core_light_probe import (
+from probe_images import (
     BALL,
     BALL_LIGHT,
     CAM,
@@ -13,14 +13,14 @@ from test_core_light_probe import (
     SPHERE_CENTRES,
     SS,
     TOL_DEG,
-    _angle_deg,
-    _frame_with_z,
-    _subsamples,
-    _unit,
     outline_circle,
     render_perspective,
     render_probe_photo,
 )
+from probe_images import angle_deg as _angle_deg
+from probe_images import frame_with_z as _frame_with_z
+from probe_images import subsamples as _subsamples
+from probe_images import unit as _unit
 
 from brdf_reconstruct.core.capture import light_probe as lp
 from brdf_reconstruct.core.capture import sphere_outline as so

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from observing import lambert_table as _lambert_table
 
 from brdf_reconstruct.core.brdf import database, metrics, render
 from brdf_reconstruct.core.method import pipeline
@@ -127,3 +128,26 @@ def test_reliable_pixels_are_a_subset_of_the_observed_ones(default_basis, two_ma
     observed = {tuple(p) for p in r.observed_pixels}
     assert all(tuple(p) in observed for p in r.reliable_pixels)
     assert np.all(r.observed_pixels[:, 2] >= RES // 2)  # region 1 is the right half
+
+
+# -------------------------------------------------- the saturated mask of a photo
+def test_saturated_mask_turns_off_the_brightest_peak_in_the_pipeline(scene):
+    """pipeline.saturated_pixels counts the mask, so Eq. 2 is skipped as with a clip."""
+    from brdf_reconstruct.core.method import pipeline
+
+    truth, _ = scene
+    light = np.array([0.0, 0.0, 1.0])
+    saturated = np.zeros(truth.mask.shape, dtype=bool)
+    saturated[:3] = True
+    p = pipeline.PhotoInput(photo=synthetic.photo(_lambert_table(), truth, light),
+                            normal=truth.normal, position=truth.position,
+                            visibility=np.ones(truth.mask.shape),
+                            region=np.zeros(truth.mask.shape, dtype=int),
+                            camera_center=truth.camera_center, light=light,
+                            saturated=saturated)
+    assert pipeline.saturated_pixels([p], 0, None) == 3 * 96
+    assert pipeline.saturated_pixels([p], 0, 1e9) == 3 * 96
+    assert pipeline.saturated_pixels([p], 1, None) == 0
+    # nor do they enter the KL histograms
+    (view,) = pipeline.region_views([p], 0)
+    assert view.mask.sum() == truth.mask.size - 3 * 96 and not view.mask[:3].any()

@@ -1,158 +1,19 @@
-"""Observations and the reliable region on numpy scenes with known answers."""
+"""The reliable region (core.method.reliable) on numpy scenes with known answers:
+the curvature, monotonicity and brightest-peak stages, the seeded trials, the fast
+paths against plain references, and the checks of the paper's assumptions before
+applying them (ReliableSettings ``peak_max_angle`` and ``monotonicity_max_fraction``)."""
 
 import numpy as np
 import pytest
+from observing import lambert_table as _lambert_table
+from observing import observe as _observe
 
-from brdf_reconstruct.core.brdf import merl
+from brdf_reconstruct.core.brdf import database
 from brdf_reconstruct.core.method import observations, reliable
 from testkit import synthetic
 
 
-def _lambert_table(albedo=0.5):
-    table = np.full((3, merl.N_CELLS), np.nan)
-    table[:, merl.valid_cells()] = albedo / np.pi
-    return table.reshape(3, *merl.SHAPE)
-
-
-@pytest.fixture(scope="module")
-def scene():
-    z = synthetic.height_field(96)
-    truth = synthetic.gbuffer_from_heights(z)
-    scan = synthetic.gbuffer_from_heights(synthetic.blunted(z, sigma_px=2.0))
-    return truth, scan
-
-
-def _observe(photo, g, light, settings=None, **kw):
-    kw.setdefault("visibility", np.ones(g.mask.shape))
-    kw.setdefault("region", np.zeros(g.mask.shape, dtype=int))
-    return observations.observe(photo, g.normal, g.position, kw.pop("visibility"),
-                                kw.pop("region"), g.camera_center, light,
-                                settings=settings, **kw)
-
-
-# ------------------------------------------------------------------------ observations
-def test_lambertian_rho_is_albedo_over_pi_with_rgb_irradiance(scene):
-    truth, _ = scene
-    light = synthetic.LIGHTS[0]
-    E = np.array([2.0, 1.0, 0.5])
-    photo = synthetic.photo(_lambert_table(0.4), truth, light, irradiance=E)
-    s = _observe(photo, truth, light, irradiance=E)
-    assert len(s) > 0.5 * truth.mask.size
-    np.testing.assert_allclose(s.rho, 0.4 / np.pi, rtol=1e-12)
-    # cells agree with the directions they came from
-    np.testing.assert_array_equal(
-        s.cells, merl.cells_from_dirs(merl.to_local(s.n, s.l), merl.to_local(s.n, s.v)))
-
-
-def test_removals_are_counted(scene):
-    truth, _ = scene
-    light = np.array([0.0, 0.0, 1.0])
-    photo = synthetic.photo(_lambert_table(), truth, light)
-    vis = np.ones(truth.mask.shape)
-    vis[:10] = 0.0  # shadowed rows
-    region = np.zeros(truth.mask.shape, dtype=int)
-    region[-5:] = -1  # background rows
-    photo[20, 20] = np.nan
-    photo[30, 30] = 50.0  # saturated
-    s = _observe(photo, truth, light, visibility=vis, region=region,
-                 settings=observations.ObservationSettings(clip_level=10.0))
-    r = s.removed
-    assert r["background"] == 5 * 96 and r["shadowed"] == 10 * 96
-    assert r["nonfinite"] == 1 and r["saturated"] == 1
-    assert len(s) + sum(r.values()) == truth.mask.size
-
-
-def test_saturated_pixels_from_the_white_level_mask_are_removed_and_counted(scene):
-    """A camera's saturation found on the file's codes (photo_io.Photo.saturated)
-    rides along as a mask: those pixels are never fitted, whatever their value."""
-    truth, _ = scene
-    light = np.array([0.0, 0.0, 1.0])
-    photo = synthetic.photo(_lambert_table(), truth, light)
-    saturated = np.zeros(truth.mask.shape, dtype=bool)
-    saturated[40:44, 50:60] = True  # 40 pixels at the white level
-    plain = _observe(photo, truth, light)
-    s = _observe(photo, truth, light, saturated=saturated)
-    assert s.removed["saturated"] == 40 and plain.removed["saturated"] == 0
-    assert len(s) == len(plain) - 40
-    kept = {tuple(px) for px in s.pixel}
-    assert not any((r, c) in kept for r in range(40, 44) for c in range(50, 60))
-    # with a clip level too, a pixel is saturated by either rule, counted once
-    photo[40, 50] = photo[10, 10] = 50.0
-    both = _observe(photo, truth, light, saturated=saturated,
-                    settings=observations.ObservationSettings(clip_level=10.0))
-    assert both.removed["saturated"] == 41
-    with pytest.raises(ValueError, match="saturated must have shape"):
-        _observe(photo, truth, light, saturated=saturated[:-1])
-
-
-def test_saturated_mask_turns_off_the_brightest_peak_in_the_pipeline(scene):
-    """pipeline.saturated_pixels counts the mask, so Eq. 2 is skipped as with a clip."""
-    from brdf_reconstruct.core.method import pipeline
-
-    truth, _ = scene
-    light = np.array([0.0, 0.0, 1.0])
-    saturated = np.zeros(truth.mask.shape, dtype=bool)
-    saturated[:3] = True
-    p = pipeline.PhotoInput(photo=synthetic.photo(_lambert_table(), truth, light),
-                            normal=truth.normal, position=truth.position,
-                            visibility=np.ones(truth.mask.shape),
-                            region=np.zeros(truth.mask.shape, dtype=int),
-                            camera_center=truth.camera_center, light=light,
-                            saturated=saturated)
-    assert pipeline.saturated_pixels([p], 0, None) == 3 * 96
-    assert pipeline.saturated_pixels([p], 0, 1e9) == 3 * 96
-    assert pipeline.saturated_pixels([p], 1, None) == 0
-    # nor do they enter the KL histograms
-    (view,) = pipeline.region_views([p], 0)
-    assert view.mask.sum() == truth.mask.size - 3 * 96 and not view.mask[:3].any()
-
-
-def test_extreme_all_saturated_photo(scene):
-    truth, _ = scene
-    photo = np.full(truth.mask.shape + (3,), 100.0)
-    s = _observe(photo, truth, synthetic.LIGHTS[3],
-                 settings=observations.ObservationSettings(clip_level=1.0))
-    assert len(s) == 0 and s.removed["saturated"] > 0
-    with pytest.raises(ValueError, match="no samples"):
-        reliable.reliable_candidates(s)
-
-
-def test_extreme_light_exactly_at_grazing(scene):
-    truth, _ = scene
-    light = np.array([1.0, 0.0, 0.0])  # in the plane of a flat surface
-    photo = synthetic.photo(_lambert_table(), truth, light)
-    s = _observe(photo, truth, light)
-    assert np.all(np.sum(s.n * s.l, axis=1) >= 0.1)  # grazing ones removed
-    assert s.removed["grazing"] > 0
-    assert np.all(np.isfinite(s.rho))
-
-
-def test_extreme_camera_at_the_light(scene):
-    """h = v = l: every sample in phi_d bin 0 ... theta_d = 0, finite rho."""
-    truth, _ = scene
-    light = np.array([0.0, 0.0, 1.0])  # the orthographic camera looks down -z
-    photo = synthetic.photo(_lambert_table(0.3), truth, light)
-    s = _observe(photo, truth, light)
-    assert np.all(s.cells[:, 1] == 0)  # theta_d = 0
-    np.testing.assert_allclose(s.rho, 0.3 / np.pi, rtol=1e-9)
-    cand, _ = reliable.reliable_candidates(s)
-    assert np.all(np.isfinite(cand.rho))
-
-
-def test_extreme_nan_in_normals(scene):
-    truth, _ = scene
-    light = synthetic.LIGHTS[0]
-    photo = synthetic.photo(_lambert_table(), truth, light)
-    normal = truth.normal.copy()
-    normal[40:42, 40:42] = np.nan
-    g = synthetic.GBuffer(normal, truth.position, truth.mask, truth.camera_center)
-    s = _observe(photo, g, light)
-    assert s.removed["nonfinite"] == 4
-    assert np.all(np.isfinite(s.n)) and np.all(np.isfinite(s.rho))
-    cand, _ = reliable.reliable_candidates(s)
-    assert np.all(np.isfinite(cand.rho))
-
-
+# ------------------------------------------------------------------------ extremes
 def test_extreme_single_pixel_region(scene):
     truth, _ = scene
     light = synthetic.LIGHTS[3]
@@ -277,18 +138,6 @@ def test_trials_are_seeded(default_basis, scene):
     assert not np.array_equal(a[0][1], a[1][1])  # trials differ
 
 
-def test_curvature_map_reuse_gives_identical_samples(scene):
-    """Photos from one camera share G-buffers; their curvature is computed once."""
-    truth, scan = scene
-    light = synthetic.LIGHTS[1]
-    photo = synthetic.photo(_lambert_table(), truth, light)
-    H = observations.image_curvature(scan.normal, scan.position, scan.mask)
-    a = _observe(photo, scan, light)
-    b = _observe(photo, scan, light, curvature_map=H)
-    np.testing.assert_array_equal(a.curvature, b.curvature)
-    np.testing.assert_array_equal(a.rho, b.rho)
-
-
 # ------------------------------------------------- fast paths against plain references
 def _bare_samples(rng, shapes, fill, n_regions, radiance=None):
     """Samples on random pixels of views of ``shapes`` (random order), random regions."""
@@ -390,24 +239,78 @@ def test_monotone_residuals_equal_a_plain_sort_and_fit():
             np.testing.assert_array_equal(reliable.monotone_residuals(s), reference(s))
 
 
-def test_observe_view_directions_and_subset_match_the_plain_ones(scene):
-    import dataclasses
-
-    from brdf_reconstruct.core.brdf import render
-
+# ---------------------------------------------- the checks of the paper's assumptions
+def _samples(table, scene, lights=synthetic.LIGHTS[:3]):
     truth, scan = scene
-    light = synthetic.LIGHTS[2]
-    camera = np.array([0.3, -0.2, 4.0])  # perspective: view directions vary
-    photo = synthetic.photo(_lambert_table(), truth, light)
-    s = observations.observe(photo, scan.normal, scan.position, np.ones(scan.mask.shape),
-                             np.zeros(scan.mask.shape, dtype=int), camera, light)
-    p = scan.position[s.pixel[:, 0], s.pixel[:, 1]]
-    np.testing.assert_array_equal(s.v, render.view_directions(camera, p))
-    n = scan.normal[s.pixel[:, 0], s.pixel[:, 1]]
-    np.testing.assert_array_equal(s.n, n / np.linalg.norm(n, axis=1, keepdims=True))
-    keep = np.random.default_rng(0).random(len(s)) < 0.5
-    for index in (keep, np.flatnonzero(keep), np.flatnonzero(keep)[::-1], [], [-1, 0]):
-        sub = s.subset(index)
-        for f in dataclasses.fields(s):
-            if f.name not in ("shapes", "removed"):
-                np.testing.assert_array_equal(getattr(sub, f.name), getattr(s, f.name)[index])
+    parts = []
+    for i, light in enumerate(lights):
+        photo = synthetic.photo(table, truth, light)
+        parts.append(observations.observe(
+            photo, scan.normal, scan.position, np.ones(scan.mask.shape),
+            np.zeros(scan.mask.shape, dtype=int), scan.camera_center, light, view_index=i))
+    return observations.concatenate(parts)
+
+
+def _spec(name):
+    return next(s for s in database.heldout_specs() if s["name"] == name)
+
+
+def test_sheen_brightest_pixel_is_not_taken_as_a_specular_peak(scene):
+    # cloth is brightest towards grazing, 44 deg from h here: Eq. 2 must not fire
+    s = _samples(database.make_table(_spec("heldout_fabric")), scene)
+    cand, report = reliable.reliable_candidates(s)
+    assert report.skipped.get("brightest") == [0]
+    assert len(report.peaks) == 0
+    _, literal = reliable.reliable_candidates(
+        s, reliable.ReliableSettings(peak_max_angle=np.pi))
+    assert len(literal.peaks) == 1  # the paper's literal rule would have moved it
+
+
+def test_glossy_peak_is_still_corrected(scene):
+    s = _samples(database.make_table(_spec("heldout_gold_medium")), scene)
+    cand, report = reliable.reliable_candidates(s)
+    assert "brightest" not in report.skipped and len(report.peaks) == 1
+    k = report.peaks[0]
+    h = cand.l[k] + cand.v[k]
+    np.testing.assert_allclose(cand.n[k], h / np.linalg.norm(h), atol=1e-12)
+
+
+def test_monotonicity_is_skipped_where_the_data_reject_it(scene):
+    # sheen: reflectance rises towards grazing, i.e. falls as n.h grows (Eq. 1 fails)
+    s = _samples(database.make_table(_spec("heldout_random_fabric")), scene)
+    strict = reliable.ReliableSettings(monotonicity_max_fraction=1.0, use_curvature=False)
+    _, applied = reliable.reliable_candidates(s, strict)
+    fraction = applied.removed["monotonicity"] / applied.input
+    guarded = reliable.ReliableSettings(monotonicity_max_fraction=min(0.9, fraction - 0.05),
+                                        use_curvature=False)
+    _, report = reliable.reliable_candidates(s, guarded)
+    assert report.skipped.get("monotonicity") == [0]
+    assert report.removed["monotonicity"] == 0
+
+
+def test_guard_is_per_region(scene):
+    truth, scan = scene
+    tables = [database.make_table(_spec("heldout_random_fabric")),
+              database.make_table(_spec("heldout_gold_medium"))]
+    region = np.zeros(scan.mask.shape, dtype=int)
+    region[:, 48:] = 1
+    parts = []
+    for i in (0, 1, 2):
+        light = synthetic.LIGHTS[i]
+        photo = np.where((region == 0)[..., None], synthetic.photo(tables[0], truth, light),
+                         synthetic.photo(tables[1], truth, light))
+        parts.append(observations.observe(photo, scan.normal, scan.position,
+                                          np.ones(scan.mask.shape), region,
+                                          scan.camera_center, light, view_index=i))
+    s = observations.concatenate(parts)
+    strict = reliable.ReliableSettings(monotonicity_max_fraction=1.0, use_curvature=False)
+    fraction = []
+    for r in (0, 1):
+        _, rep = reliable.reliable_candidates(s.subset(np.flatnonzero(s.region == r)), strict)
+        fraction.append(rep.removed["monotonicity"] / rep.input)
+    assert fraction[0] > fraction[1]  # the sheen breaks Eq. 1 more than the gold
+    between = reliable.ReliableSettings(monotonicity_max_fraction=sum(fraction) / 2,
+                                        use_curvature=False)
+    _, report = reliable.reliable_candidates(s, between)
+    assert report.skipped["monotonicity"] == [0]
+    assert report.removed["monotonicity"] > 0  # still applied in the gold region
