@@ -1,6 +1,6 @@
 """The bunny capture as arrays, for benchmarks that run the pipeline many times.
 
-A capture (``bench/capture.py``) is files: photos rendered by Cycles with the
+A capture (``testkit/capture.py``) is files: photos rendered by Cycles with the
 ground-truth table. A sweep over settings and materials needs the same capture
 hundreds of times, so this module keeps what does not change:
 
@@ -10,7 +10,7 @@ hundreds of times, so this module keeps what does not change:
 - :func:`photo_inputs`: photos of any table shaded with numpy on the ground
   truth's G-buffers (``selection.shade_gbuffer``: ``rho(n, l, v) (n.l) E V``, the
   same direct-light model the Cycles table shader renders; they agree within
-  1 % on unshadowed pixels, ``tests/test_blender_table_shader.py``), paired with
+  1 % on unshadowed pixels, ``tests/blender/test_table_shader.py``), paired with
   the scan's G-buffers as ``pipeline.PhotoInput``s, exactly what the extension
   hands to ``core.method.pipeline``.
 
@@ -24,15 +24,10 @@ from __future__ import annotations
 import hashlib
 import json
 import pathlib
-import sys
 import tempfile
 import time
 
 import numpy as np
-
-HERE = pathlib.Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
 
 # The capture's distant light (world space, towards the light), as in capture.generate.
 LIGHT = (0.35, -0.45, 0.82)

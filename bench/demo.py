@@ -2,7 +2,7 @@
 
 1. Loads (or, on a fresh machine, builds and caches, about 2 min) the built-in
    PCA basis of measured-style BRDFs.
-2. Generates, or reuses from the cache, a capture (``bench/capture.py``): the
+2. Generates, or reuses from the cache, a capture (``testkit/capture.py``): the
    Stanford bunny degraded as a photogrammetry mesh (decimated, blunted,
    noisy), a COLMAP model of a camera ring, and linear EXR photos under one
    distant light shaded in Cycles by a held-out material's true table (the
@@ -31,8 +31,6 @@ import sys
 import time
 
 import numpy as np
-
-HERE = pathlib.Path(__file__).resolve().parent
 
 
 def main(argv=None) -> int:
@@ -189,5 +187,4 @@ def plot(truth, rec, truth_img, rec_img, name, path):
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(HERE))
     sys.exit(main())

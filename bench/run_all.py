@@ -10,6 +10,7 @@ and headline number.
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 from pathlib import Path
@@ -24,8 +25,12 @@ NO_QUICK = ("cycles_kl_bench.py", "sfm.py", "camera_inputs_bench.py")  # no redu
 ALWAYS = {"sfm.py": ["--out", str(HERE / "results" / "sfm.json")]}
 
 
-def main() -> int:
-    quick = "--quick" in sys.argv[1:]
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true",
+                        help="the reduced version of each benchmark that has one")
+    quick = parser.parse_args(argv).quick
     failed = []
     for script in SCRIPTS:
         args = ALWAYS.get(script, []) + (["--quick"] if quick and script not in NO_QUICK

@@ -6,7 +6,7 @@ Run: ``make bench`` (or ``.venv/bin/python bench/tradeoff.py [--quick]
 / ``.png``.
 
 The capture: the Stanford bunny, degraded as a photogrammetry mesh (decimated,
-smoothed, noisy; ``bench/capture.py``), three lit photos from a COLMAP camera
+smoothed, noisy; ``testkit/capture.py``), three lit photos from a COLMAP camera
 ring, Cycles G-buffers of the truth and of the scan (``bench/capture_arrays.py``),
 photos shaded from the truth's geometry with the true table plus 1 % noise.
 
@@ -22,7 +22,7 @@ peak memory (the child's max RSS), and the errors against the truth: BRDF log
 RMSE and the rendered-sphere relative RMSE under three evaluation lights
 (``core.brdf.metrics.sphere_error``) of the chosen table and of the baked material.
 
-**Presets**: the Fast / Balanced / Accurate settings of ``brdf_addon.props.PRESETS``
+**Presets**: the Fast / Balanced / Accurate settings of ``brdf_addon.presets.PRESETS``
 run as points of their own, so the README quotes what each measured.
 
 **Ablation** (the paper's Fig. 3e against Sec. 3.1): no constraints, each
@@ -132,7 +132,7 @@ def _cycles_select(point: Point, arrays, inputs, candidates):
         target=scan, photos=[SimpleNamespace(camera=cameras[i]) for i in lit]))
     t0 = time.perf_counter()
     _score, winner = cycles_select.select_by_cycles(scene, inputs, 0, candidates,
-                                                    samples=point.kl_samples)
+                                                    render_samples=point.kl_samples)
     return winner, time.perf_counter() - t0
 
 

@@ -1,6 +1,6 @@
 """The batch job file (TOML): the text form of what the panel holds.
 
-See ARCHITECTURE.md / docs/architecture.md for the format. Paths are relative
+See docs/user-guide.md (the job-file reference) for the format. Paths are relative
 to the job file. :func:`load` parses and checks it (no bpy calls);
 :func:`apply` builds the scene through the same operators the panel uses.
 """

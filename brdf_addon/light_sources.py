@@ -1,5 +1,5 @@
 """The light of each photo as a world direction: :func:`photo_light`, which every step
-uses, and the Sun object the light operators aim (``operators/light.py``).
+uses, and the Sun object the light operators aim (``operators/light.py``, the panel's buttons).
 
 Directions are world-space unit vectors *towards* the distant light. A Blender
 Sun shines along its local -Z, so the direction towards it is the object's

@@ -30,7 +30,7 @@ from ..core.capture import photo_io
 from .scratch_scene import ScratchScene, configure_cycles, float_exr_output
 
 GROUP_NAME = "BRDF Reconstruction"
-_DISTRIBUTION = {"ggx": "GGX", "beckmann": "BECKMANN"}  # lobe_fit -> node enum
+_DISTRIBUTION = {"ggx": "GGX", "beckmann": "BECKMANN"}  # lobes -> node enum
 
 
 # ------------------------------------------------------------------------- the material

@@ -112,10 +112,10 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
         "regions": regions,
         "timings_s": timings | {f"pipeline_{k}": v for k, v in result.timings.items()},
         "cycles": {
-            # the fewest each comparison needs, as measured (see the README)
+            # the fewest each comparison needs, as measured (see docs/results.md)
             "gbuffers": {"samples": 1, "bounces": 0, "pixel_filter_px": 0.01,
                          "why": "one sample at the pixel centre is exact geometry; "
-                                "tests/test_blender_gbuffer.py"},
+                                "tests/blender/test_gbuffer.py"},
             "selection": {"path": settings.kl_path.lower(),
                           "samples": settings.kl_samples if settings.kl_path == "CYCLES"
                           else None, "bounces": 0,

@@ -3,7 +3,7 @@
 Plain data (no bpy), so that the benchmark that measured them
 (``bench/tradeoff.py``, ``bench/results/tradeoff.json``, "presets") runs exactly
 these values. Chosen from that benchmark's sweep on the blunted bunny capture
-and from the held-out comparison (README, "The speed/accuracy trade"):
+and from the held-out comparison (docs/results.md, "The speed/accuracy trade"):
 
 - trials buy little beyond 4 with the fast selection, so Fast uses 4;
 - 20 condition-optimal samples per trial: the paper's 6 did better on the two

@@ -18,7 +18,11 @@ What exists:
   itself (the Cycles table shader, ``brdf_addon.table_shader``).
 - :func:`generate`: all of it as files a user would have, with a job file.
 
-The ambient multi-view images and pycolmap's SfM on them are in ``bench/sfm.py``.
+The ambient multi-view images and pycolmap's SfM on them are in ``testkit/sfm.py``
+(the benchmark: ``bench/sfm.py``). Used by the demo (``bench/demo.py``), the
+benchmarks (``bench/capture_arrays.py``, ``bench/heldout_bench.py``,
+``bench/camera_inputs_bench.py``) and the capture tests (``tests/blender/``); run
+as a script (:func:`command`) it writes one capture folder.
 """
 
 from __future__ import annotations
@@ -321,7 +325,7 @@ def _say(message: str) -> None:
 
 
 def main(argv=None) -> int:
-    """``python bench/capture.py OUT --material NAME ...``: write a capture to OUT."""
+    """``python testkit/capture.py OUT --material NAME ...``: write a capture to OUT."""
     import argparse
 
     from brdf_reconstruct.core.brdf import database

@@ -6,6 +6,9 @@ variant ``llvm_ad_rgb``), from a capture's own files only, and tabulates the
 fitted BSDF on the MERL grid so it is scored exactly like our reconstruction
 (``core.brdf.metrics.sphere_error`` / ``brdf_log_rmse``).
 
+The peer of ``bench/heldout_bench.py`` (which runs ``python -m testkit.mitsuba_peer``
+in a subprocess); its conventions are tested in ``tests/test_mitsuba_peer.py``.
+
 Dev-only: Mitsuba is in ``requirements-bench.txt``, never a dependency of the
 extension. Needs the LLVM shared library, version >= 17 (Debian 12:
 ``apt-get install libllvm19``; with LLVM 14/15 Dr.Jit 1.5 aborts on its first
@@ -473,7 +476,7 @@ def fit_principled(capture_folder, iterations: int = DEFAULT_ITERATIONS,
     """Fit a Principled BSDF to a capture's lit photos by inverse rendering.
 
     capture_folder: a folder holding ``job.toml``, ``scan.ply``, ``sparse/0`` and
-    the photos (``bench/capture.py``). iterations: Adam steps, each rendering
+    the photos (``testkit/capture.py``). iterations: Adam steps, each rendering
     every lit view at ``spp`` samples per pixel (a new sampler seed for every
     render, derived from ``seed``).
     lr: Adam's learning rate (parameters live in [0, 1]). keys: the fitted
@@ -557,7 +560,7 @@ def fit_principled(capture_folder, iterations: int = DEFAULT_ITERATIONS,
 
 
 def main(argv=None) -> int:
-    """``python bench/mitsuba_peer.py CAPTURE``: fit a capture, score it against its
+    """``python -m testkit.mitsuba_peer CAPTURE``: fit a capture, score it against its
     ``truth.binary`` if there is one, print the summary; ``--out`` writes the
     table (MERL .binary), ``--json`` the summary."""
     import argparse

@@ -1,6 +1,7 @@
-"""Photogrammetry for real (issue 5): pycolmap SfM on ambient renders of the bunny.
+"""Photogrammetry for real (issue 5): pycolmap SfM on ambient renders of the bunny,
+for the SfM benchmark (``bench/sfm.py``) and the SfM test (``tests/blender/test_sfm.py``).
 
-The synthetic capture (bench/capture.py) hands the pipeline the true COLMAP
+The synthetic capture (``testkit/capture.py``) hands the pipeline the true COLMAP
 cameras. Here the photogrammetry step is exercised instead: the ground-truth
 bunny, with a procedural "baked-in" colour texture, is rendered by Cycles
 under ambient light only from the cameras of ``capture.camera_ring``; pycolmap
@@ -12,8 +13,8 @@ the true ones after a similarity alignment.
 - :func:`run_sfm`: feature extraction, matching, mapping; the largest model.
 - :func:`camera_errors`: registered images, rotation and centre errors after a
   Umeyama similarity alignment, reprojection error, points, focal length.
-- :func:`main`: ``python bench/sfm.py [--views N] [--width W --height H]
-  [--out bench/results/sfm.json]``.
+- The command line is the benchmark's: ``python bench/sfm.py [--views N]
+  [--width W --height H] [--out bench/results/sfm.json]``.
 
 Frames and units: world = the ground truth's frame (object centred at the
 origin, unit radius, z up); COLMAP poses ``(R_cam_from_world (3, 3), t (3,))``
@@ -116,7 +117,7 @@ def render_ambient_views(folder, n_views: int = DEFAULT_VIEWS,
     cameras are written as a COLMAP model (PINHOLE, fx = fy = ``focal_px``,
     default 1.25 x width, principal point at the image centre) into
     ``folder / "truth_sparse"`` with ``capture.write_colmap`` and imported
-    with the product's ``import_colmap.import_cameras``. Each is rendered by
+    with the product's ``brdf_addon.colmap_import.import_cameras``. Each is rendered by
     Cycles on the CPU (``samples`` per pixel, one bounce, Standard view
     transform; ``denoise``: OpenImageDenoise, off by default as it costs about
     1.5 s per view to start and SIFT does as well without it) to an 8-bit RGB

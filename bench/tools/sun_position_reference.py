@@ -1,4 +1,4 @@
-"""Reference sun positions from Blender's Sun Position add-on, for tests/test_core_sun_addon.py.
+"""Reference sun positions from Blender's Sun Position add-on, for tests/core/capture/test_sun.py.
 
 Evaluates the add-on's own calculation (``sun_calc.get_sun_position`` in the
 add-on 3.1.x that Blender 3.x-4.1 bundled; ``get_sun_coordinates`` in later
@@ -109,6 +109,9 @@ def evaluate(addons_dir: pathlib.Path) -> tuple[list[dict], dict]:
     import bpy  # noqa: I001  (bpy first: it puts addon_utils on sys.path)
     import addon_utils
 
+    # Blender's own add-on folder (unpacked from blender-data, or a Blender install's
+    # scripts/addons): addon_utils.enable imports the add-on by name from sys.path, as
+    # Blender does with its scripts folders. Not a project folder.
     sys.path.insert(0, str(addons_dir))
     mod = addon_utils.enable("sun_position", default_set=True, handle_error=None)
     if mod is None or not pathlib.Path(mod.__file__).is_relative_to(addons_dir):
@@ -203,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     doc = {
         "description": (
             "Sun positions from Blender's Sun Position add-on (its own calculation, "
-            "called with north_offset 0) for tests/test_core_sun_addon.py."
+            "called with north_offset 0) for tests/core/capture/test_sun.py."
         ),
         "generated_by": "bench/tools/sun_position_reference.py",
         "command": command.strip(),

@@ -38,7 +38,7 @@ BSDF, and ``alpha = sqr(saturate(Roughness))`` in the SVM closure node; the
 velvet is ``bsdf_ashikhmin_velvet_eval`` with ``sigma = max(saturate(Roughness),
 0.01)`` (Cycles ``kernel/closure/bsdf_microfacet.h``, ``bsdf_util.h``,
 ``bsdf_ashikhmin_velvet.h``, ``kernel/svm/closure.h``, Blender 4.x-5.x).
-``tests/test_blender_material.py`` checks it against Cycles renders. The
+``tests/blender/test_material.py`` checks it against Cycles renders. The
 Principled BSDF is not the target: it scales its diffuse base by the specular
 layer's albedo from Cycles' lookup tables, which numpy cannot reproduce exactly.
 

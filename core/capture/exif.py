@@ -4,7 +4,7 @@ The metadata arrive as a plain dict {attribute name: value}, as OpenImageIO
 3.0 reports them in ``ImageSpec.extra_attribs`` (``{p.name: p.value for p in
 spec.extra_attribs}``). Names are matched case-insensitively, as OIIO does.
 What OIIO 3.0 really produces (checked by round trips in
-tests/test_core_exif.py):
+tests/core/capture/test_exif.py):
 
 - ``ExposureTime`` float (s) and ``FNumber`` float, from EXIF rationals (JPEG
   and TIFF); ``Exif:ShutterSpeedValue`` / ``Exif:ApertureValue`` float APEX

@@ -4,7 +4,7 @@ core.capture.sun gives the Sun in local east-north-up (ENU: +X east, +Y north, +
 up). A scene's world frame need not be z-up (a COLMAP world is arbitrary), so
 the sun direction in world space is ``world_from_enu(...) @ d_enu``.
 
-Convention (the one ``operators/light.py`` ``sun_position_direction`` uses
+Convention (the one ``brdf_addon/light_sources.py`` ``sun_position_direction`` uses
 for a z-up world): the scene's north is the north hint (+Y) turned by the
 north offset counter-clockwise about up, seen from above; for up = +Z,
 ``world_from_enu(north_offset_rad=a)`` is the rotation by a about +Z.

@@ -1,6 +1,6 @@
 """Lens distortion: resampling photos of a distorted COLMAP camera to its pinhole.
 
-``operators/import_colmap.py`` turns every COLMAP camera into a Blender
+``brdf_addon/colmap_import.py`` turns every COLMAP camera into a Blender
 pinhole with the model's own fx, fy, cx, cy and image size, whatever the
 model (SIMPLE_RADIAL, OPENCV, OPENCV_FISHEYE, ...). A lit photo taken through
 a distorted lens only lines up with that pinhole after resampling: each

@@ -97,7 +97,7 @@ def _shift(a, dv, du, fill):
 # A 9-input sorting network (Knuth's 25 comparators) pruned to what its five lowest
 # outputs need, which is all a median of at most nine values reads: (i, j, min_only)
 # puts min(s_i, s_j) in s_i and, unless min_only, max(s_i, s_j) in s_j. Checked on all
-# 2^9 zero-one inputs in tests/test_core_curvature.py (0-1 principle).
+# 2^9 zero-one inputs in tests/core/method/test_curvature.py (0-1 principle).
 _LOW5_OF_9 = ((0, 3, 0), (1, 7, 0), (2, 5, 0), (4, 8, 0), (0, 7, 0), (2, 4, 0), (3, 8, 0),
               (5, 6, 0), (0, 2, 0), (1, 3, 0), (4, 5, 0), (7, 8, 1), (1, 4, 0), (3, 6, 1),
               (5, 7, 1), (0, 1, 0), (2, 4, 0), (3, 5, 0), (2, 3, 0), (4, 5, 1), (1, 2, 0),

@@ -1,0 +1,223 @@
+"""What every benchmark shares: the machine description, the results writer, and the
+set-up steps more than one bench repeats. Bench-only; what tests share too lives in
+``testkit/``.
+
+- :func:`machine`: one description of the machine a run is on (CPU count,
+  platform, Python and package versions, memory, load average, thread pinning),
+  recorded as ``"machine"`` in every result file; :func:`machine_end` adds the
+  load average when the run ends.
+- :func:`write_json`: the one results writer. It records how the file was made
+  (:func:`invocation`: the interpreter, ``sys.argv``, the parsed arguments, the
+  working folder, the ``BRDF_*`` environment, the git commit) and writes through
+  a temporary file beside the target, moved into place with ``os.replace``, so an
+  interrupted run never leaves half a JSON file in ``bench/results/``.
+- :func:`ensure_capture`, :func:`run_batch`, :func:`heldout_spec`: the demo's
+  capture (generated once into the cache), the batch entry in a fresh
+  subprocess, a held-out material by name.
+- :func:`proc_status_bytes`, :func:`meminfo_bytes`: ``/proc`` memory readings.
+
+Scripts import it as ``import common``: a script run as ``python bench/x.py`` has
+``bench/`` first on ``sys.path``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import platform
+import shlex
+import subprocess
+import sys
+import time
+from importlib import metadata
+
+HERE = pathlib.Path(__file__).resolve().parent
+ROOT = HERE.parent
+RESULTS = HERE / "results"
+GIB = 2**30
+
+# The demo's capture (bench/demo.py's defaults): 6 cameras on the COLMAP ring, 3 lit
+# photos of 240 x 180, scan seed 0.
+DEMO_CAPTURE = {"views": 6, "lit": 3, "resolution": (240, 180), "seed": 0}
+
+# Versions recorded in the machine description: key -> distribution name. Looked up in
+# the installed metadata (nothing is imported); a package not installed is left out.
+PACKAGES = {"numpy": "numpy", "scipy": "scipy", "openimageio": "OpenImageIO",
+            "pycolmap": "pycolmap", "bpy": "bpy", "mitsuba": "mitsuba",
+            "matplotlib": "matplotlib"}
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+# Environment that changes what a run reads or writes (the basis and capture cache, the
+# ground-truth meshes): recorded with the command (the thread pinning is in machine()).
+ENVIRONMENT = ("BRDF_RECONSTRUCT_CACHE", "BRDF_SHARED_DATA")
+
+
+# --------------------------------------------------------------------------- machine
+
+
+def meminfo_bytes(key: str) -> int:
+    """A /proc/meminfo entry (``MemTotal``, ``MemAvailable``) in bytes; 0 if absent."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith(key + ":"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
+def proc_status_bytes(key: str, pid: int | str = "self") -> int:
+    """An entry of /proc/<pid>/status in bytes: ``VmRSS`` (resident memory now) or
+    ``VmHWM`` (its peak since the process's last exec); 0 if unreadable."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            for line in f:
+                if line.startswith(key + ":"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
+def package_versions() -> dict:
+    """Installed versions of :data:`PACKAGES` (key -> version string)."""
+    out = {}
+    for key, name in PACKAGES.items():
+        try:
+            out[key] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return out
+
+
+def machine(note: str | None = None) -> dict:
+    """The machine this run is on, at its start.
+
+    Keys: ``cpu_count``; ``platform``; ``python``; the versions of the installed
+    :data:`PACKAGES` (``numpy``, ``scipy``, ``openimageio``, ``pycolmap``, ``bpy``,
+    ``mitsuba``, ``matplotlib``), each under its own key; ``memory_total_gib``,
+    ``memory_available_gib_at_start`` (GiB, 2 decimals); ``load_average_1_5_15_at_start``
+    (``os.getloadavg()``); ``threads`` (the BLAS/OpenMP pinning variables, None when
+    unset); ``note`` if given (what else ran on the machine).
+    """
+    info = {"cpu_count": os.cpu_count(), "platform": platform.platform(),
+            "python": platform.python_version(), **package_versions(),
+            "memory_total_gib": round(meminfo_bytes("MemTotal") / GIB, 2),
+            "memory_available_gib_at_start": round(meminfo_bytes("MemAvailable") / GIB, 2),
+            "load_average_1_5_15_at_start": list(os.getloadavg()),
+            "threads": {k: os.environ.get(k) for k in THREAD_VARIABLES}}
+    if note:
+        info["note"] = note
+    return info
+
+
+def machine_end(info: dict) -> dict:
+    """Add ``load_average_1_5_15_at_end`` to a :func:`machine` description; returns it."""
+    info["load_average_1_5_15_at_end"] = list(os.getloadavg())
+    return info
+
+
+# --------------------------------------------------------------------------- results
+
+
+def _git(*args: str) -> str | None:
+    try:
+        done = subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True,
+                              text=True, timeout=30)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return done.stdout.strip() if done.returncode == 0 else None
+
+
+def _plain(value):
+    """``value`` as JSON-ready data (paths and other objects as strings)."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if value is None or isinstance(value, bool | int | float | str):
+        return value
+    return str(value)
+
+
+def invocation(arguments=None) -> dict:
+    """How this process was started: ``command`` (the interpreter and ``sys.argv``,
+    shell-quoted, ready to paste), ``python``, ``argv``, ``cwd``, ``arguments`` (an
+    ``argparse.Namespace`` or dict: the values the script used, defaults included),
+    ``environment`` (the :data:`ENVIRONMENT` variables that are set), ``git_commit``
+    and ``git_tracked_changes`` (whether tracked files differed from that commit)."""
+    if isinstance(arguments, argparse.Namespace):
+        arguments = vars(arguments)
+    status = _git("status", "--porcelain", "--untracked-files=no")
+    return {"command": shlex.join([sys.executable, *sys.argv]),
+            "python": sys.executable, "argv": list(sys.argv), "cwd": os.getcwd(),
+            "arguments": _plain(arguments),
+            "environment": {k: os.environ[k] for k in ENVIRONMENT if k in os.environ},
+            "git_commit": _git("rev-parse", "HEAD"),
+            "git_tracked_changes": None if status is None else bool(status)}
+
+
+def write_json(path, document: dict, *, arguments=None, invocation_key: str = "invocation",
+               indent: int = 1) -> pathlib.Path:
+    """Write ``document`` as JSON to ``path`` (a result file, normally under
+    ``bench/results/``), with ``document[invocation_key] =`` :func:`invocation`
+    ``(arguments)`` added (a script that updates part of an earlier file, such as
+    ``--speed-only``, names its own key so the full run's record stays). Written to a
+    temporary name in the same folder, then ``os.replace``d into place. Returns
+    the path."""
+    path = pathlib.Path(path)
+    document[invocation_key] = invocation(arguments)
+    text = json.dumps(document, indent=indent) + "\n"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+# --------------------------------------------------------------------------- set-up
+
+
+def heldout_spec(name: str) -> dict:
+    """The held-out material ``name`` of ``core.brdf.database.heldout_specs``
+    (KeyError naming the choices if there is none)."""
+    from brdf_reconstruct.core.brdf import database
+
+    specs = {s["name"]: s for s in database.heldout_specs()}
+    if name not in specs:
+        raise KeyError(f"unknown held-out material {name!r}; choose from {', '.join(specs)}")
+    return specs[name]
+
+
+def ensure_capture(material: str, views: int = DEMO_CAPTURE["views"],
+                   lit: int = DEMO_CAPTURE["lit"], resolution=DEMO_CAPTURE["resolution"],
+                   seed: int = DEMO_CAPTURE["seed"]) -> tuple[pathlib.Path, float | None]:
+    """The capture of ``material`` with these settings (``testkit.capture``: the demo's
+    cache, ``capture.cache_folder``), generated now in a fresh process if its
+    ``job.toml`` is missing. Returns (folder, seconds the generation took, or None
+    when it was cached)."""
+    from testkit import capture
+
+    settings = (material, views, lit, tuple(resolution), seed)
+    folder = capture.cache_folder(*settings)
+    if (folder / "job.toml").is_file():
+        return folder, None
+    t0 = time.perf_counter()
+    subprocess.run(capture.command(folder, *settings), check=True, stdout=subprocess.DEVNULL)
+    return folder, time.perf_counter() - t0
+
+
+def run_batch(job) -> tuple[subprocess.CompletedProcess, float, float]:
+    """``python -m brdf_reconstruct.brdf_addon.batch job`` in a fresh subprocess, as a
+    user runs it (output captured as text). Returns (the finished process, its wall
+    seconds, the 1-minute load average at its start)."""
+    load = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch",
+                           str(job)], capture_output=True, text=True, env=dict(os.environ))
+    return done, time.perf_counter() - t0, load
