@@ -93,7 +93,7 @@ def run_material(B, spec, resolution, seed):
         cand, report = reliable.reliable_candidates(samples, settings)
         times[f"{name}_reliable_s"] = time.perf_counter() - t0
         counts[name] = {"input": report.input, "removed": report.removed, "kept": report.kept}
-        trials = reliable.reconstruct_trials(B, cand, N_SAMPLES, N_TRIALS, seed, 0.5,
+        trials = reliable.trial_candidates(B, cand, N_SAMPLES, N_TRIALS, seed, 0.5,
                                              report.peaks)
         t0 = time.perf_counter()
         chosen = selection.select_by_kl([r.table for r, _ in trials], views)

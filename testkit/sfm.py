@@ -131,6 +131,7 @@ def render_ambient_views(folder, n_views: int = DEFAULT_VIEWS,
     import bpy
 
     from brdf_reconstruct.brdf_addon import colmap_import
+    from brdf_reconstruct.brdf_addon.scratch_scene import configure_cycles
 
     t0 = time.perf_counter()
     folder = pathlib.Path(folder)
@@ -156,17 +157,11 @@ def render_ambient_views(folder, n_views: int = DEFAULT_VIEWS,
                                  co[:: max(1, len(co) // 2000)])
     cameras = colmap_import.import_cameras(scene, model)
 
+    configure_cycles(scene, samples, bounces=1, denoise=denoise, seed=seed)
+    scene.cycles.denoiser = "OPENIMAGEDENOISE"
     r = scene.render
-    r.engine = "CYCLES"
     r.use_persistent_data = True  # one BVH for all views
     r.film_transparent = False
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = denoise
-    scene.cycles.denoiser = "OPENIMAGEDENOISE"
-    scene.cycles.seed = seed
-    scene.cycles.max_bounces = 1
     scene.view_settings.view_transform = "Standard"
     r.image_settings.file_format = "PNG"
     r.image_settings.color_mode = "RGB"

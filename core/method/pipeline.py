@@ -3,7 +3,7 @@
 This is Ono et al. (2017) Fig. 2 after the geometry exists: observations
 (``core.method.observations``), the reliable region (Sec. 3.1, ``core.method.reliable``),
 random-subset reconstructions from condition-optimal samples (Sec. 3.2,
-``core.method.reliable.reconstruct_trials``) and selection by the KL divergence of
+``core.method.reliable.trial_candidates``) and selection by the KL divergence of
 rendered against photographed intensities (``core.method.selection``, the fast numpy
 path). It knows nothing of Blender: the operators gather the arrays (photos
 read from files, G-buffers rendered by Cycles) and write the result back.
@@ -261,7 +261,7 @@ def run_region(
         _check(cancelled)
         if progress:
             progress(t / settings.n_trials, f"region {region}: trial {t + 1}/{settings.n_trials}")
-        trials += reliable.reconstruct_trials(basis, cand, settings.n_samples, 1, child,
+        trials += reliable.trial_candidates(basis, cand, settings.n_samples, 1, child,
                                               settings.subset_fraction, report.peaks,
                                               timings=result.timings)
     _check(cancelled)

@@ -26,7 +26,7 @@ assumptions keep the trustworthy samples, each stage switchable and counted:
    would remove most samples (``monotonicity_max_fraction``): there the
    reflectance itself is not monotone in n.h (sheen, retro-reflection).
 
-``reliable_candidates`` runs the stages; ``reconstruct_trials`` then makes the
+``reliable_candidates`` runs the stages; ``trial_candidates`` then makes the
 paper's several reconstructions from random subsets (Sec. 3.2), each from
 condition-optimal cells (``core.method.sampling``), seeded.
 """
@@ -330,7 +330,7 @@ def reliable_candidates(
         skipped={stage: regions for stage, regions in skipped.items() if regions})
 
 
-def reconstruct_trials(
+def trial_candidates(
     basis: Basis,
     candidates: Samples,
     n_samples: int,
