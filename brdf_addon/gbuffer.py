@@ -51,7 +51,8 @@ import numpy as np
 from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
-from ..core.method.gbuffers import LAYER, REGION_AOV, GBuffers, decode, empty, read_multilayer_exr
+from ..core.capture.photo_io import read_multilayer_exr
+from ..core.method.gbuffers import LAYER, REGION_AOV, GBuffers, decode, empty
 from .scratch_scene import ScratchScene, configure_cycles, float_exr_output
 
 # Sculpt face sets: the integer face attribute Blender keeps them in.

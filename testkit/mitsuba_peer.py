@@ -155,17 +155,15 @@ class Capture:
 
 
 def _read_exr(path) -> tuple[np.ndarray, np.ndarray | None]:
-    import OpenImageIO as oiio
+    """(H, W, 3) float64 colour and the (H, W) alpha (None without an A channel) of
+    a photo, through the product's EXR reader (channels in the file's order)."""
+    from brdf_reconstruct.core.capture import photo_io
 
-    buf = oiio.ImageBuf(str(path))
-    if buf.has_error:
-        raise ValueError(f"cannot read {path}: {buf.geterror().strip()}")
-    spec = buf.spec()
-    pixels = np.asarray(buf.get_pixels(oiio.FLOAT), dtype=np.float64)
-    pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
-    rgb = pixels[..., :3] if spec.nchannels >= 3 else np.repeat(pixels[..., :1], 3, axis=-1)
-    names = list(spec.channelnames)
-    alpha = pixels[..., names.index("A")] if "A" in names else None
+    channels = photo_io.read_multilayer_exr(path)
+    planes = list(channels.values())
+    colour = planes[:3] if len(planes) >= 3 else planes[:1] * 3
+    rgb = np.stack(colour, axis=-1).astype(np.float64)
+    alpha = channels["A"].astype(np.float64) if "A" in channels else None
     return rgb, alpha
 
 

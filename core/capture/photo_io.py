@@ -415,3 +415,39 @@ def _one_line(text: str) -> str:
         if line:
             return line.rstrip(".")
     return ""
+
+
+def read_multilayer_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """All channels of an EXR (multi-part, multilayer or plain), by full name: the
+    reader of renders (G-buffers, peers' photos) where channel names matter.
+
+    Returns {"ViewLayer.Normal.X": (H, W) float32, ...} on the display window
+    (row 0 at the top); pixels outside a part's data window are 0.
+    """
+    import OpenImageIO as oiio  # ships with Blender and the bpy wheel
+
+    image = oiio.ImageInput.open(os.fspath(path))
+    if image is None:
+        raise RuntimeError(f"cannot open {path}: {oiio.geterror()}")
+    channels = {}
+    try:
+        part = 0
+        while image.seek_subimage(part, 0):
+            spec = image.spec()
+            data = image.read_image(part, 0, 0, spec.nchannels, oiio.FLOAT)
+            if data is None:
+                raise RuntimeError(f"cannot read {path}: {image.geterror()}")
+            data = np.asarray(data, dtype=np.float32).reshape(
+                spec.height, spec.width, spec.nchannels)
+            full = np.zeros((spec.full_height, spec.full_width, spec.nchannels), np.float32)
+            # Place the data window into the display window (they differ for crops).
+            y0, x0 = spec.y - spec.full_y, spec.x - spec.full_x
+            ys = slice(max(y0, 0), min(y0 + spec.height, spec.full_height))
+            xs = slice(max(x0, 0), min(x0 + spec.width, spec.full_width))
+            full[ys, xs] = data[ys.start - y0:ys.stop - y0, xs.start - x0:xs.stop - x0]
+            for k, name in enumerate(spec.channelnames):
+                channels[name] = full[..., k]
+            part += 1
+    finally:
+        image.close()
+    return channels

@@ -6,13 +6,13 @@ Channels (Blender's names, layer ``LAYER``): ``Combined.A`` (coverage),
 samples, background ones giving 0), ``Diffuse Direct.RGB`` (a white Lambertian
 surface under a Sun of strength pi W/m^2: ``vis * max(n.l, 0)``) and the AOV
 ``REGION_AOV.X`` (the region id). Images have row 0 at the top, column 0 at the
-left (EXR and numpy order). No bpy: OpenImageIO reads the file.
+left (EXR and numpy order). No bpy; the file is read by
+``core.capture.photo_io.read_multilayer_exr``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import os
 
 import numpy as np
 
@@ -63,41 +63,6 @@ class GBuffers:
         return self.mask.shape
 
 
-def read_multilayer_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """All channels of a (multi-part or single-part) multilayer EXR, by full name.
-
-    Returns {"ViewLayer.Normal.X": (H, W) float32, ...} on the display window
-    (row 0 at the top); pixels outside a part's data window are 0.
-    """
-    import OpenImageIO as oiio  # ships with Blender and the bpy wheel
-
-    image = oiio.ImageInput.open(os.fspath(path))
-    if image is None:
-        raise RuntimeError(f"cannot open {path}: {oiio.geterror()}")
-    channels = {}
-    try:
-        part = 0
-        while image.seek_subimage(part, 0):
-            spec = image.spec()
-            data = image.read_image(part, 0, 0, spec.nchannels, oiio.FLOAT)
-            if data is None:
-                raise RuntimeError(f"cannot read {path}: {image.geterror()}")
-            data = np.asarray(data, dtype=np.float32).reshape(
-                spec.height, spec.width, spec.nchannels)
-            full = np.zeros((spec.full_height, spec.full_width, spec.nchannels), np.float32)
-            # Place the data window into the display window (they differ for crops).
-            y0, x0 = spec.y - spec.full_y, spec.x - spec.full_x
-            ys = slice(max(y0, 0), min(y0 + spec.height, spec.full_height))
-            xs = slice(max(x0, 0), min(x0 + spec.width, spec.full_width))
-            full[ys, xs] = data[ys.start - y0:ys.stop - y0, xs.start - x0:xs.stop - x0]
-            for k, name in enumerate(spec.channelnames):
-                channels[name] = full[..., k]
-            part += 1
-    finally:
-        image.close()
-    return channels
-
-
 def empty(height, width, center, ortho, window) -> GBuffers:
     """Background everywhere: what a photo whose object projects outside the frame gets."""
     return GBuffers(
@@ -110,9 +75,10 @@ def empty(height, width, center, ortho, window) -> GBuffers:
 
 def decode(channels, *, light, slots, center, ortho, window) -> GBuffers:
     """The :class:`GBuffers` of one render from its EXR ``channels``
-    (:func:`read_multilayer_exr`). light: (3,) unit world direction towards the light.
-    slots: the number of material slots (region ids past the last clamp to it), or
-    None for face sets. center, ortho, window: as in :class:`GBuffers`."""
+    (``core.capture.photo_io.read_multilayer_exr``). light: (3,) unit world
+    direction towards the light. slots: the number of material slots (region ids
+    past the last clamp to it), or None for face sets. center, ortho, window: as in
+    :class:`GBuffers`."""
     def read(pass_name, components):
         try:
             planes = [channels[f"{LAYER}.{pass_name}.{c}"] for c in components]
