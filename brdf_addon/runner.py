@@ -1,8 +1,9 @@
 """One reconstruction run in steps (:class:`Run`), split where Blender must and must
 not be touched.
 
-1. ``gathering.gather`` (main thread, bpy), one photo per step: the photo, its
-   light and its Cycles G-buffers, as ``core.method.pipeline.PhotoInput``.
+1. ``photo_input.gather_photo`` (main thread, bpy), one photo per step: the
+   photo, its light and its Cycles G-buffers; ``gathering.capture_inputs`` makes
+   them ``core.method.pipeline.PhotoInput`` (``gathering.gather`` does all at once).
 2. ``core.method.pipeline.run`` (a worker thread, no bpy): the science.
 3. ``outputs.write_back`` (main thread, bpy): tables, pictures, report,
    materials.
@@ -10,7 +11,6 @@ not be touched.
 The operator (``operators/reconstruct.py``), the batch entry and the tests all
 drive a :class:`Run`. Nothing of the user's is modified.
 """
-
 
 from __future__ import annotations
 

@@ -4,7 +4,6 @@ rendered by Cycles with a known material (Lambert, albedo ALBEDO).
 Used by the Blender workflow, panel and batch tests.
 """
 
-import contextlib
 import math
 import pathlib
 
@@ -89,21 +88,6 @@ def settings_for_tiny_runs(built: dict, out: pathlib.Path) -> None:
     s.output_dir = str(out)
     s.curvature_threshold = 1.5
     s.samples, s.trials = 12, 2
-
-
-@contextlib.contextmanager
-def registered(tmp: pathlib.Path):
-    """The tiny scene built in ``tmp`` with the add-on registered and ``scene.brdf``
-    set for tiny runs (:func:`settings_for_tiny_runs`); unregistered afterwards."""
-    import brdf_reconstruct
-
-    built = build(tmp)
-    brdf_reconstruct.register()
-    settings_for_tiny_runs(built, tmp / "out")
-    try:
-        yield built
-    finally:
-        brdf_reconstruct.unregister()
 
 
 def lit_irradiance() -> float:

@@ -1,4 +1,11 @@
-"""Shared fixtures. No bpy here: core tests must run without Blender."""
+"""Fixtures of every test. No bpy here: core tests must run without Blender (the
+Blender tests' scene reset and registration are in blender/conftest.py).
+
+This folder is on ``sys.path`` (pytest's "prepend" import mode puts each
+conftest.py's and test file's folder there; there is no __init__.py, the
+repository root being a package itself), so test files in any sub-folder import
+its helper modules (``image_files``) by name. Helper and test file names are
+therefore unique across tests/."""
 
 import os
 import pathlib
@@ -25,18 +32,3 @@ def heldout_tables():
     from brdf_reconstruct.core.brdf import database
 
     return {s["name"]: database.make_table(s) for s in database.heldout_specs()}
-
-
-@pytest.fixture
-def registered_scene():
-    """An empty factory scene with the add-on registered (unregistered afterwards).
-    Imports bpy only when a test asks for it."""
-    bpy = pytest.importorskip("bpy")
-    import brdf_reconstruct
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    brdf_reconstruct.register()
-    try:
-        yield bpy.context.scene
-    finally:
-        brdf_reconstruct.unregister()

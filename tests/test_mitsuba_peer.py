@@ -1,4 +1,4 @@
-"""Conventions of the Mitsuba 3 peer (bench/mitsuba_peer.py); skipped without mitsuba.
+"""Conventions of the Mitsuba 3 peer (testkit/mitsuba_peer.py); skipped without mitsuba.
 
 Mitsuba is a dev-only extra (requirements-bench.txt). These checks take a few
 seconds: the emitter's irradiance, the tabulation's wi/wo roles and cosine, and

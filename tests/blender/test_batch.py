@@ -19,7 +19,7 @@ object = "Scan"
 out = "out"
 
 [settings]
-curvature_threshold = 1.5   # a 48-pixel photo (see test_blender_workflow)
+curvature_threshold = 1.5   # a 48-pixel photo (see test_workflow.py)
 samples = 12
 trials = 2
 seed = 4

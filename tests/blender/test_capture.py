@@ -1,4 +1,4 @@
-"""The synthetic capture's geometry (bench/capture.py): ground truth, the degraded
+"""The synthetic capture's geometry (testkit/capture.py): ground truth, the degraded
 "photogrammetry" mesh, the camera ring and its COLMAP model through the real
 import path."""
 

@@ -8,7 +8,6 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-import brdf_reconstruct  # noqa: E402
 from brdf_reconstruct.brdf_addon import (  # noqa: E402
     cycles_select,
     gathering,

@@ -152,7 +152,7 @@ def test_temporary_scene_is_removed_after_an_error(monkeypatch):
     def fail(*args, **kwargs):
         raise RuntimeError("render failed")
 
-    monkeypatch.setattr(material._TemporaryScene, "render", fail)
+    monkeypatch.setattr(material._SphereScene, "render", fail)
     with pytest.raises(RuntimeError, match="render failed"):
         material.bake_error(mat, lobes.tabulate(MODELS["lambert"]), BAKE_LIGHTS[:1])
     assert _snapshot() == before

@@ -1,7 +1,7 @@
 """Real-capture inputs through the product's path (pip bpy): photos as cameras write
 them, their mistakes as one-line errors, exposure, irradiance references, lens
 distortion, saturation, the sun from EXIF; on the tiny Cycles scene of
-tests/blender_scene.py (a Lambertian sphere, albedo 0.5, under one Sun)."""
+testkit/blender_scene.py (a Lambertian sphere, albedo 0.5, under one Sun)."""
 
 import datetime as dt
 import json

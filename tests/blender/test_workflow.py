@@ -1,6 +1,6 @@
 """The artist's workflow in pip bpy: photos, lights, reconstruct, cancel, undo, and
 the user's files; on a tiny scene whose photo Cycles renders with a known
-Lambertian material (tests/blender_scene.py)."""
+Lambertian material (testkit/blender_scene.py)."""
 
 import datetime as dt
 import hashlib

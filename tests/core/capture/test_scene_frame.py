@@ -2,7 +2,7 @@
 
 References: the z-up convention of brdf_addon/light_sources.py ``sun_position_direction``
 (rotation by the north offset about +Z applied to ENU), the NREL SPA example's
-Sun (tests/test_core_sun.py: azimuth 194.34024 deg, topocentric zenith
+Sun (test_sun.py: azimuth 194.34024 deg, topocentric zenith
 50.11162 deg), and analytic rings of look-at cameras (core.capture.cameras.look_at,
 core.capture.cameras.camera_to_world) built in a rotated world whose up is known.
 """

@@ -128,8 +128,8 @@ def test_trials_are_seeded(default_basis, scene):
     photo = synthetic.photo(_lambert_table(0.3), truth, light)
     s = _observe(photo, scan, light)
     cand, report = reliable.reliable_candidates(s)
-    a = reliable.reconstruct_trials(default_basis, cand, 6, 3, 42, peaks=report.peaks)
-    b = reliable.reconstruct_trials(default_basis, cand, 6, 3, 42, peaks=report.peaks)
+    a = reliable.trial_candidates(default_basis, cand, 6, 3, 42, peaks=report.peaks)
+    b = reliable.trial_candidates(default_basis, cand, 6, 3, 42, peaks=report.peaks)
     assert len(a) == 3
     for (ra, ua), (rb, ub) in zip(a, b, strict=True):
         np.testing.assert_array_equal(ua, ub)
