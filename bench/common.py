@@ -56,29 +56,27 @@ ENVIRONMENT = ("BRDF_RECONSTRUCT_CACHE", "BRDF_SHARED_DATA")
 # --------------------------------------------------------------------------- machine
 
 
-def meminfo_bytes(key: str) -> int:
-    """A /proc/meminfo entry (``MemTotal``, ``MemAvailable``) in bytes; 0 if absent."""
+def _proc_kib_entry(path: str, key: str) -> int:
+    """The ``key: <n> kB`` entry of a /proc file in bytes; 0 if absent or unreadable."""
     try:
-        with open("/proc/meminfo") as f:
+        with open(path) as f:
             for line in f:
                 if line.startswith(key + ":"):
                     return int(line.split()[1]) * 1024
     except OSError:
         pass
     return 0
+
+
+def meminfo_bytes(key: str) -> int:
+    """A /proc/meminfo entry (``MemTotal``, ``MemAvailable``) in bytes; 0 if absent."""
+    return _proc_kib_entry("/proc/meminfo", key)
 
 
 def proc_status_bytes(key: str, pid: int | str = "self") -> int:
     """An entry of /proc/<pid>/status in bytes: ``VmRSS`` (resident memory now) or
     ``VmHWM`` (its peak since the process's last exec); 0 if unreadable."""
-    try:
-        with open(f"/proc/{pid}/status") as f:
-            for line in f:
-                if line.startswith(key + ":"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 0
+    return _proc_kib_entry(f"/proc/{pid}/status", key)
 
 
 def package_versions() -> dict:

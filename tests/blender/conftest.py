@@ -61,3 +61,16 @@ def registered():
         yield bpy.context.scene
     finally:
         brdf_reconstruct.unregister()
+
+
+@pytest.fixture
+def tiny(tmp_path, request):
+    """The tiny scene of ``testkit.blender_scene.build`` (a sphere scan, its camera, a
+    Sun and a photo of it) in ``tmp_path``, the add-on registered in it and
+    ``scene.brdf`` set for tiny runs; a module adds what it needs on top."""
+    from testkit import blender_scene as BS
+
+    built = BS.build(tmp_path)
+    request.getfixturevalue("registered")  # after the build, which reads a new file
+    BS.settings_for_tiny_runs(built, tmp_path / "out")
+    return built

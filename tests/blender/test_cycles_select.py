@@ -26,13 +26,11 @@ def _lambert(albedo):
 
 
 @pytest.fixture
-def tiny(tmp_path, request):
-    built = BS.build(tmp_path)
-    request.getfixturevalue("registered")  # after the build, which reads a new file
-    BS.settings_for_tiny_runs(built, tmp_path / "out")
-    (p,), _ = photo_list.add_photos(built["scene"], [str(built["photo"])])
+def tiny(tiny):
+    """The tiny scene with its photo added, lit at the known irradiance."""
+    (p,), _ = photo_list.add_photos(tiny["scene"], [str(tiny["photo"])])
     p.irradiance = (BS.lit_irradiance(),) * 3
-    return built
+    return tiny
 
 
 def test_both_paths_pick_the_true_material(tiny):

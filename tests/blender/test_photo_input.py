@@ -25,14 +25,10 @@ from testkit import blender_scene as BS  # noqa: E402
 
 
 @pytest.fixture
-def tiny(tmp_path, request):
-    built = BS.build(tmp_path)
-    request.getfixturevalue("registered")  # after the build, which reads a new file
-    BS.settings_for_tiny_runs(built, tmp_path / "out")
-    built["linear"] = photo_io.read_photo(built["photo"])
-    return built
-
-
+def tiny(tiny):
+    """The tiny scene, with its photo read as linear radiance."""
+    tiny["linear"] = photo_io.read_photo(tiny["photo"])
+    return tiny
 
 
 def _entry(built, path, camera=None):

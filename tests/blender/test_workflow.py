@@ -25,14 +25,6 @@ from brdf_reconstruct.core.method import pipeline  # noqa: E402
 from testkit import blender_scene as BS  # noqa: E402
 
 
-@pytest.fixture
-def tiny(tmp_path, request):
-    built = BS.build(tmp_path)
-    request.getfixturevalue("registered")  # after the build, which reads a new file
-    BS.settings_for_tiny_runs(built, tmp_path / "out")
-    return built
-
-
 def _add_photo(built):
     added, unmatched = photo_list.add_photos(built["scene"], [str(built["photo"])])
     assert unmatched == [] and len(added) == 1
