@@ -32,6 +32,39 @@ import time
 
 import numpy as np
 
+MARKER = ".brdf_demo_output"
+"""A file the demo leaves in its output folder: only a folder holding it (or
+nothing) is replaced by the next run."""
+
+
+def _unsafe_out(out: pathlib.Path) -> str:
+    """Why ``out`` must not be replaced by the demo, or "" when it may: it does not
+    exist, is empty, or holds the demo's marker (or, from before the marker, the
+    demo's own ``summary.json``). Never the checkout, a parent of it, or a file."""
+    here = pathlib.Path(__file__).resolve().parent.parent
+    if out == here or out in here.parents:
+        return f"--out {out} is the checkout or holds it; choose a new folder"
+    if not out.exists():
+        return ""
+    if not out.is_dir():
+        return f"--out {out} is a file; choose a folder"
+    if not any(out.iterdir()) or (out / MARKER).is_file():
+        return ""
+    try:
+        made_by_demo = json.loads((out / "summary.json").read_text()).get(
+            "command", "").startswith("make demo")
+    except (OSError, ValueError, AttributeError):
+        made_by_demo = False
+    if made_by_demo and set(p.name for p in out.iterdir()) <= _DEMO_FILES:
+        return ""
+    return (f"--out {out} holds files the demo did not make; choose another folder "
+            "or empty it (nothing was changed)")
+
+
+_DEMO_FILES = {"brdf_0.binary", "brdf_0_photo_vs_render.png", "brdf_0_reliable_region.png",
+               "brdf_0_slice.png", "fig4.png", "logs", "report.json", "scene.blend",
+               "summary.json", "job.toml"}
+
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -63,9 +96,14 @@ def main(argv=None) -> int:
               flush=True)
         args.views, args.lit = max(args.views, 8), max(args.lit, 4)
     out = pathlib.Path(args.out).resolve()
+    refusal = _unsafe_out(out)
+    if refusal:
+        print(f"error: {refusal}", file=sys.stderr)
+        return 2
     if out.exists():
-        shutil.rmtree(out)
+        shutil.rmtree(out)  # a previous demo's output, marked as ours
     (out / "logs").mkdir(parents=True)
+    (out / MARKER).write_text("made by bench/demo.py (make demo); replaced by the next run\n")
     t0 = time.perf_counter()
 
     print("[1/4] the BRDF basis (built once and cached, about 2 min on a fresh machine)",

@@ -75,7 +75,9 @@ def run_job(path) -> dict:
     import json
 
     report = json.loads((job.out / "report.json").read_text())
-    bpy.ops.wm.save_as_mainfile(filepath=str(job.out / "scene.blend"), copy=True)
+    files = import_module(package.__name__ + ".core.files")
+    with files.replacing(job.out / "scene.blend") as tmp:  # never half-written
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp), copy=True)
     report["out"] = str(job.out)
     return report
 

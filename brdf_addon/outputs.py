@@ -15,6 +15,7 @@ import time
 import bpy
 import numpy as np
 
+from ..core import files
 from ..core.brdf import merl
 from ..core.method import pictures, pipeline, selection
 from . import gathering, prefs, props
@@ -125,7 +126,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
         },
         "blender": bpy.app.version_string,
     }
-    (out / "report.json").write_text(json.dumps(report, indent=1, default=_json_default))
+    files.write_text(out / "report.json", json.dumps(report, indent=1, default=_json_default))
     return report
 
 

@@ -28,6 +28,8 @@ import os
 
 import numpy as np
 
+from .. import files
+
 SHAPE = (90, 90, 180)
 N_CELLS = SHAPE[0] * SHAPE[1] * SHAPE[2]  # 1,458,000 cells per channel
 SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])  # stored -> 1/sr, R G B
@@ -85,7 +87,8 @@ def write(path: str | os.PathLike, table: np.ndarray) -> None:
     NaN cells are written as -1 (unmeasured). ``read(write(t))`` reproduces ``t``
     bit for bit whenever ``t`` lies on the format's value grid (every table that
     was read from a file does) and to within one ulp otherwise. Raises
-    ``ValueError`` for a wrong shape, Inf, or negative values.
+    ``ValueError`` for a wrong shape, Inf, or negative values. The file is
+    written to a temporary name and renamed, so it is never left half-written.
     """
     table = np.asarray(table, dtype=np.float64)
     if table.shape != (3, *SHAPE):
@@ -94,9 +97,8 @@ def write(path: str | os.PathLike, table: np.ndarray) -> None:
         raise ValueError("table holds Inf; a MERL file can only mark cells unmeasured (NaN)")
     if (table < 0).any():
         raise ValueError("table holds negative BRDF values")
-    with open(os.fspath(path), "wb") as f:
-        f.write(np.asarray(SHAPE, dtype="<i4").tobytes())
-        f.write(_stored_values(table).astype("<f8").tobytes())
+    data = np.asarray(SHAPE, dtype="<i4").tobytes() + _stored_values(table).astype("<f8").tobytes()
+    files.write_bytes(path, data)  # a temporary name, renamed when complete
 
 
 # ------------------------------------------------------------------------ angle mapping

@@ -15,6 +15,7 @@ import os
 
 import numpy as np
 
+from .. import files
 from ..brdf import merl
 
 
@@ -83,8 +84,9 @@ def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
 
     image = np.ascontiguousarray(np.clip(image, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
     h, w, c = image.shape
-    out = oiio.ImageOutput.create(os.fspath(path))
-    if out is None or not out.open(os.fspath(path), oiio.ImageSpec(w, h, c, oiio.UINT8)):
-        raise ValueError(f"cannot write {os.fspath(path)}")
-    out.write_image(image)
-    out.close()
+    with files.replacing(path) as tmp:  # renamed into place when complete
+        out = oiio.ImageOutput.create(str(tmp))
+        if out is None or not out.open(str(tmp), oiio.ImageSpec(w, h, c, oiio.UINT8)):
+            raise ValueError(f"cannot write {os.fspath(path)}")
+        out.write_image(image)
+        out.close()

@@ -51,6 +51,13 @@ def _digest(path):
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def bpy_file_header(path) -> bool:
+    """A complete .blend starts with Blender's header (zstd-compressed ones with
+    the zstd magic)."""
+    head = path.read_bytes()[:7]
+    return head == b"BLENDER" or head[:4] == b"\x28\xb5\x2f\xfd"
+
+
 def test_good_job_exits_0_with_outputs(job_dir):
     blend, photo = _digest(job_dir / "scene.blend"), _digest(job_dir / "view0.exr")
     result = _run(job_dir, GOOD)
@@ -58,6 +65,9 @@ def test_good_job_exits_0_with_outputs(job_dir):
     out = job_dir / "out"
     assert {"brdf_0.binary", "report.json", "scene.blend", "brdf_0_slice.png"} <= {
         p.name for p in out.iterdir()}
+    # every output went through a temporary name (core.files) and none is left over
+    assert [p.name for p in out.iterdir() if ".tmp" in p.name] == []
+    assert bpy_file_header(out / "scene.blend")
     report = json.loads((out / "report.json").read_text())
     assert report["settings"]["trials"] == 2 and report["regions"][0]["status"] == "ok"
     # progress on the terminal: one "[ pp%] step" line per step, rising to 100 %
