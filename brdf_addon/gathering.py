@@ -15,6 +15,7 @@ import os
 import bpy
 import numpy as np
 
+from ..core import files
 from ..core.method import pipeline
 from . import gbuffer, photo_input
 
@@ -56,6 +57,24 @@ def check_scene(scene) -> None:
         if photo.camera is None:
             raise ValueError(f"photo {photo.name} has no camera: pick the camera it was "
                              "taken from")
+    _check_output_folder(scene)
+
+
+def _check_output_folder(scene) -> None:
+    """ValueError when the output folder is a file, or holds files of the run's names
+    that no run wrote, unless the user asked to overwrite them."""
+    from . import outputs
+
+    out = outputs.output_path(scene)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"the output folder {out} is a file: choose a folder")
+    replaced = files.files_a_run_would_replace(out)
+    if replaced and not scene.brdf.overwrite:
+        shown = ", ".join(replaced[:4]) + (f" and {len(replaced) - 4} more"
+                                           if len(replaced) > 4 else "")
+        raise ValueError(f"the output folder {out} holds {shown}, which this run would "
+                         "replace; choose another folder or turn on Overwrite "
+                         "(overwrite = true in a job)")
 
 
 def gather(scene) -> list[pipeline.PhotoInput]:

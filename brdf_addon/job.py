@@ -13,7 +13,8 @@ import tomllib
 
 from .presets import PRESETS
 
-KNOWN_TOP = {"blend", "mesh", "mesh_up", "object", "colmap", "up", "out", "settings", "photo"}
+KNOWN_TOP = {"blend", "mesh", "mesh_up", "object", "colmap", "up", "out", "overwrite",
+             "settings", "photo"}
 KNOWN_PHOTO = {"image", "camera", "light", "irradiance", "mask", "sun", "probe", "color_space",
                "exposure", "grey_card", "reference_region", "silhouette_margin"}
 KNOWN_SUN = {"date", "utc_offset", "latitude", "longitude", "north_offset"}
@@ -47,6 +48,7 @@ class Job:
     colmap: pathlib.Path | None = None
     mesh_up: str = "Z"
     up: list | str | None = None
+    overwrite: bool = False
     settings: dict = dataclasses.field(default_factory=dict)
     photos: list = dataclasses.field(default_factory=list)
 
@@ -74,8 +76,15 @@ def load(path) -> Job:
         raise JobError(f"job file has unknown keys: {', '.join(sorted(unknown))}")
     base = path.parent
     job = Job(path=path, out=_file(base, data.get("out", "out"), "out", must_exist=False))
+    if "overwrite" in data:
+        if not isinstance(data["overwrite"], bool):
+            raise JobError(f"overwrite must be true or false, got {data['overwrite']!r}")
+        job.overwrite = data["overwrite"]
     if "blend" in data:
         job.blend = _file(base, data["blend"], "blend")
+        if job.blend == job.out / "scene.blend":
+            raise JobError(f"out {job.out} would replace the job's own {job.blend.name}: "
+                           "choose another out folder")
     if "mesh" in data and "object" in data:
         raise JobError("give either mesh or object, not both")
     if "mesh" in data:
@@ -214,6 +223,7 @@ def apply(job: Job, scene) -> None:
     if "preset" in job.settings and set(job.settings) & set(PRESETS.get(settings.preset, {})):
         settings.preset = "CUSTOM"
     settings.output_dir = str(job.out)
+    settings.overwrite = job.overwrite
     for i, entry in enumerate(job.photos):
         try:
             camera = _camera(scene, entry.get("camera"), entry["image"].name)

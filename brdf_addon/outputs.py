@@ -25,9 +25,17 @@ from . import gathering, prefs, props
 BAKE_LIGHTS = np.array([[0.3, 0.2, 0.93], [-0.5, 0.4, 0.77]])
 
 
+def output_path(scene) -> pathlib.Path:
+    """The run's output folder, absolute (Blender's ``//`` resolved); not created."""
+    return pathlib.Path(bpy.path.abspath(scene.brdf.output_dir or "//brdf_out"))
+
+
 def output_dir(scene) -> pathlib.Path:
-    path = pathlib.Path(bpy.path.abspath(scene.brdf.output_dir or "//brdf_out"))
+    """:func:`output_path`, created if missing and marked as a run's
+    (``core.files.OUTPUT_MARKER``)."""
+    path = output_path(scene)
     path.mkdir(parents=True, exist_ok=True)
+    files.mark_output_folder(path)
     return path
 
 

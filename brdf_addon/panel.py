@@ -171,6 +171,7 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
             col.prop(s, "kl_samples")
         layout.prop(s, "seed")
         layout.prop(s, "output_dir")
+        layout.prop(s, "overwrite")
 
 
 class BRDF_PT_reconstruct(_BRDFPanel, Panel):

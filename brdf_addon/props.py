@@ -229,6 +229,9 @@ class BRDFSettings(PropertyGroup):
     output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//brdf_out",
                                options=PATH,
                                description="Folder for the .binary tables, report and plots")
+    overwrite: BoolProperty(name="Overwrite", default=False,
+                            description="Replace files of the same names in the output "
+                            "folder that no earlier run wrote (tables, pictures, report)")
 
     # run state (not saved as settings)
     running: BoolProperty(name="Running", default=False, options={"SKIP_SAVE"})

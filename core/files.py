@@ -11,8 +11,15 @@ it was (absent, or the previous complete file) and removes the temporary file.
 from __future__ import annotations
 
 import contextlib
+import fnmatch
 import os
 import pathlib
+
+OUTPUT_MARKER = ".brdf_reconstruct_output"
+"""Left in an output folder by every run: the files of :data:`OUTPUT_NAMES` beside
+it were written by a run, and the next run may replace them."""
+OUTPUT_NAMES = ("brdf_*.binary", "brdf_*.png", "report.json", "scene.blend")
+"""The names a run writes in its output folder (shell patterns)."""
 
 
 def temporary_name(path: str | os.PathLike) -> pathlib.Path:
@@ -51,3 +58,20 @@ def write_bytes(path: str | os.PathLike, data: bytes) -> None:
 def write_text(path: str | os.PathLike, text: str) -> None:
     """Write UTF-8 ``text`` to ``path`` through :func:`replacing`."""
     write_bytes(path, text.encode("utf-8"))
+
+
+def files_a_run_would_replace(folder: str | os.PathLike) -> list[str]:
+    """Sorted names in ``folder`` that a run would write over although no run wrote
+    them: the :data:`OUTPUT_NAMES` present in a folder without
+    :data:`OUTPUT_MARKER`. [] for a missing folder or one an earlier run wrote."""
+    folder = pathlib.Path(folder)
+    if not folder.is_dir() or (folder / OUTPUT_MARKER).is_file():
+        return []
+    return sorted(p.name for p in folder.iterdir()
+                  if any(fnmatch.fnmatch(p.name, pattern) for pattern in OUTPUT_NAMES))
+
+
+def mark_output_folder(folder: str | os.PathLike) -> None:
+    """Leave :data:`OUTPUT_MARKER` in ``folder`` (the run's outputs are there)."""
+    write_text(pathlib.Path(folder) / OUTPUT_MARKER,
+               "written by BRDF Reconstruct; the next run may replace its outputs here\n")

@@ -100,12 +100,43 @@ def test_same_seed_same_table(job_dir):
      "photo other.exr matches no camera by image name; give its camera"),
     # a camera with no photo
     (('image = "view0.exr"\n', ""), f"camera {BS.IMAGE_NAME} has no photo"),
+    # the job's own folder as out: its scene.blend would be replaced
+    (('out = "out"', 'out = "."'), "would replace the job's own scene.blend"),
+    (('out = "out"', 'out = "out"\noverwrite = "yes"'), "overwrite must be true or false"),
 ])
 def test_bad_job_exits_1_with_one_line(job_dir, change, message):
     result = _run(job_dir, GOOD.replace(*change), "bad.toml")
     assert result.returncode == 1, result.stderr
     errors = [ln for ln in result.stderr.splitlines() if ln.startswith("error:")]
     assert len(errors) == 1 and message in errors[0], result.stderr
+
+
+def test_a_users_table_in_out_is_kept_unless_overwrite(job_dir):
+    """A file of the run's names that no run wrote is never replaced silently: the
+    run stops before any work with one line naming it; overwrite = true replaces
+    it; a folder a run wrote is replaced without asking."""
+    from brdf_reconstruct.core.brdf import merl
+
+    out = job_dir / "users"
+    out.mkdir()
+    mine = out / "brdf_0.binary"
+    mine.write_bytes(b"my own table")
+    job = GOOD.replace('out = "out"', 'out = "users"')
+    refused = _run(job_dir, job, "users.toml")
+    assert refused.returncode == 1, refused.stderr
+    errors = [ln for ln in refused.stderr.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 1 and "brdf_0.binary" in errors[0] and "Overwrite" in errors[0]
+    assert "Traceback" not in refused.stderr
+    assert mine.read_bytes() == b"my own table"
+    assert sorted(p.name for p in out.iterdir()) == ["brdf_0.binary"]
+
+    asked = _run(job_dir, job.replace('out = "users"', 'out = "users"\noverwrite = true'),
+                 "users_overwrite.toml")
+    assert asked.returncode == 0, asked.stderr
+    assert merl.read(mine).shape == (3, *merl.SHAPE)  # the run's table, whole
+
+    again = _run(job_dir, job, "users_again.toml")  # the folder is now a run's
+    assert again.returncode == 0, again.stderr
 
 
 def test_camera_found_by_the_photo_name_when_left_out(job_dir):

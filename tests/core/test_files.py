@@ -82,3 +82,15 @@ def test_a_picture_is_written_through_a_temporary_png(tmp_path, monkeypatch):
     assert (tmp_path / "fig.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(seen) == 1 and seen[0][0].endswith(".png") and seen[0][1] > 0
     assert _leftovers(tmp_path) == []
+
+
+def test_a_run_would_replace_only_its_own_names_in_an_unmarked_folder(tmp_path):
+    assert files.files_a_run_would_replace(tmp_path / "missing") == []
+    for name in ("brdf_0.binary", "brdf_2_slice.png", "report.json", "scene.blend",
+                 "notes.txt", "scan.ply", "view0.exr"):
+        (tmp_path / name).write_text("the user's")
+    assert files.files_a_run_would_replace(tmp_path) == [
+        "brdf_0.binary", "brdf_2_slice.png", "report.json", "scene.blend"]
+    files.mark_output_folder(tmp_path)  # a run wrote here: its outputs may be replaced
+    assert files.files_a_run_would_replace(tmp_path) == []
+    assert (tmp_path / files.OUTPUT_MARKER).is_file() and _leftovers(tmp_path) == []
