@@ -8,6 +8,7 @@ to the job file. :func:`load` parses and checks it (no bpy calls);
 from __future__ import annotations
 
 import dataclasses
+import math
 import pathlib
 import tomllib
 
@@ -144,6 +145,8 @@ def load(path) -> Job:
         if "exposure" in entry and not (isinstance(entry["exposure"], int | float)
                                         and entry["exposure"] > 0):
             raise JobError(f"photo {i + 1}: exposure must be a positive number")
+        if "irradiance" in entry:
+            _check_irradiance(i, entry["irradiance"])
         if isinstance(photo.get("light"), dict):
             _check_light_table(i, photo["light"])
         light = photo.get("light")
@@ -155,6 +158,51 @@ def load(path) -> Job:
             photo["light"] = light
         job.photos.append(photo)
     return job
+
+
+def _positive_finite(value) -> bool:
+    return (isinstance(value, int | float) and not isinstance(value, bool)
+            and math.isfinite(value) and value > 0)
+
+
+def _check_irradiance(i: int, value) -> None:
+    """JobError unless photo i's irradiance is a positive finite number or three of
+    them (W/m^2, or relative): 0, negative, Inf or NaN would turn every BRDF value
+    into nonsense without a word."""
+    values = value if isinstance(value, list) else [value]
+    if len(values) not in (1, 3) or (isinstance(value, list) and len(values) != 3):
+        raise JobError(f"photo {i + 1}: irradiance must be one number or [r, g, b], "
+                       f"got {value!r}")
+    if not all(_positive_finite(v) for v in values):
+        raise JobError(f"photo {i + 1}: irradiance must be positive and finite, got {value!r}")
+
+
+def _check_setting(settings, key: str, value) -> None:
+    """JobError unless ``value`` fits setting ``key`` of ``scene.brdf`` as it is: the
+    right type, finite, inside the setting's range, one of its choices. Blender
+    would otherwise clamp it silently (samples = -3 running with 1)."""
+    prop = settings.bl_rna.properties[key]
+    if prop.type == "BOOLEAN":
+        if not isinstance(value, bool):
+            raise JobError(f"setting {key} = {value!r}: must be true or false")
+        return
+    if prop.type == "ENUM":
+        choices = [item.identifier for item in prop.enum_items]
+        if value not in choices:
+            raise JobError(f"setting {key} = {value!r}: must be one of {', '.join(choices)}")
+        return
+    if prop.type in ("INT", "FLOAT"):
+        number = int | float if prop.type == "FLOAT" else int
+        if isinstance(value, bool) or not isinstance(value, number):
+            kind = "a whole number" if prop.type == "INT" else "a number"
+            raise JobError(f"setting {key} = {value!r}: must be {kind}")
+        if not math.isfinite(value):
+            raise JobError(f"setting {key} = {value!r}: must be finite")
+        low, high = prop.hard_min, prop.hard_max
+        if not low <= value <= high:
+            bounded = high < (2**31 - 1 if prop.type == "INT" else 1e30)
+            span = f"from {low:g} to {high:g}" if bounded else f"at least {low:g}"
+            raise JobError(f"setting {key} = {value!r}: must be {span}")
 
 
 def _check_light_table(i: int, light: dict) -> None:
@@ -216,6 +264,7 @@ def apply(job: Job, scene) -> None:
     # the preset first, then the job's own values over it (which makes it Custom)
     order = sorted(job.settings.items(), key=lambda kv: kv[0] != "preset")
     for key, value in order:
+        _check_setting(settings, key, value)
         try:
             setattr(settings, key, value)
         except (TypeError, ValueError) as error:

@@ -103,6 +103,22 @@ def test_same_seed_same_table(job_dir):
     # the job's own folder as out: its scene.blend would be replaced
     (('out = "out"', 'out = "."'), "would replace the job's own scene.blend"),
     (('out = "out"', 'out = "out"\noverwrite = "yes"'), "overwrite must be true or false"),
+    # out-of-range settings are refused, never clamped quietly
+    (("samples = 12", "samples = -3"), "setting samples = -3: must be at least 1"),
+    (("samples = 12", "samples = 0"), "setting samples = 0: must be at least 1"),
+    (("trials = 2", "trials = 0"), "setting trials = 0: must be at least 1"),
+    (("seed = 4", "seed = -1"), "setting seed = -1: must be at least 0"),
+    (("seed = 4", "seed = 4\nsubset_fraction = 2.0"),
+     "setting subset_fraction = 2.0: must be from 0.01 to 1"),
+    (("curvature_threshold = 1.5", "curvature_threshold = nan"),
+     "setting curvature_threshold = nan: must be finite"),
+    (("samples = 12", 'samples = "twelve"'), "setting samples = 'twelve': must be a whole"),
+    # an irradiance that cannot be right
+    ((f"irradiance = {math.pi}", "irradiance = 0"), "irradiance must be positive and finite"),
+    ((f"irradiance = {math.pi}", "irradiance = -1.0"), "irradiance must be positive and finite"),
+    ((f"irradiance = {math.pi}", "irradiance = inf"), "irradiance must be positive and finite"),
+    ((f"irradiance = {math.pi}", "irradiance = [1, 2]"),
+     "irradiance must be one number or [r, g, b]"),
 ])
 def test_bad_job_exits_1_with_one_line(job_dir, change, message):
     result = _run(job_dir, GOOD.replace(*change), "bad.toml")
