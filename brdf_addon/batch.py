@@ -37,14 +37,18 @@ def _import_package():
 
 def main(argv=None) -> int:
     argv = _args(list(sys.argv[1:] if argv is None else argv))
-    if len(argv) != 1 or argv[0] in ("-h", "--help"):
+    if len(argv) != 1 or argv[0].startswith("-"):  # -h, --help, or an unknown flag
         print("usage: batch.py job.toml  (after -- when run by blender)", file=sys.stderr)
         return 2
     try:
         report = run_job(argv[0])
-    except ValueError as error:
-        print(f"error: {str(error).strip().splitlines()[0]}", file=sys.stderr)
+    except (ValueError, OSError) as error:
+        print(f"error: {_one_line(error)}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("error: interrupted (Ctrl+C); no output is half-written (each file is "
+              "renamed into place only when complete)", file=sys.stderr)
+        return 130
     ok = sum(r["status"] == "ok" for r in report["regions"])
     print(f"done: {ok} region(s) reconstructed; outputs in {report['out']}")
     return 0
@@ -80,6 +84,12 @@ def run_job(path) -> dict:
         bpy.ops.wm.save_as_mainfile(filepath=str(tmp), copy=True)
     report["out"] = str(job.out)
     return report
+
+
+def _one_line(error) -> str:
+    """The first line of an error's message (a file error names the file)."""
+    text = str(error).strip()
+    return text.splitlines()[0] if text else type(error).__name__
 
 
 def _operator_message(error) -> str:

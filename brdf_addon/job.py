@@ -69,7 +69,8 @@ def load(path) -> Job:
     if not path.is_file():
         raise JobError(f"job file not found: {path}")
     try:
-        data = tomllib.loads(path.read_text())
+        # utf-8-sig: a byte-order mark (as some Windows editors write) is not TOML
+        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
         raise JobError(f"job file {path.name} is not valid TOML: {error}") from None
     unknown = set(data) - KNOWN_TOP
@@ -77,6 +78,12 @@ def load(path) -> Job:
         raise JobError(f"job file has unknown keys: {', '.join(sorted(unknown))}")
     base = path.parent
     job = Job(path=path, out=_file(base, data.get("out", "out"), "out", must_exist=False))
+    for folder in (job.out, *job.out.parents):  # the nearest existing one must be a folder
+        if folder.exists():
+            if not folder.is_dir():
+                raise JobError(f"out {job.out} is a file or lies below the file {folder}: "
+                               "choose a folder")
+            break
     if "overwrite" in data:
         if not isinstance(data["overwrite"], bool):
             raise JobError(f"overwrite must be true or false, got {data['overwrite']!r}")
@@ -107,6 +114,8 @@ def load(path) -> Job:
                                     and all(isinstance(x, int | float) for x in up)):
             raise JobError("up must be [x, y, z] or \"cameras\"")
         job.up = up
+    if not isinstance(data.get("settings", {}), dict):
+        raise JobError("[settings] must be a table of name = value lines")
     job.settings = dict(data.get("settings", {}))
     unknown = set(job.settings) - set(SETTING_NAMES)
     if unknown:
@@ -114,6 +123,9 @@ def load(path) -> Job:
     photos = data.get("photo", [])
     if not photos:
         raise JobError("the job has no [[photo]] entries")
+    if not isinstance(photos, list) or not all(isinstance(e, dict) for e in photos):
+        raise JobError("photos must be [[photo]] tables (image = \"...\" lines under each), "
+                       "not a list of file names")
     for i, entry in enumerate(photos):
         unknown = set(entry) - KNOWN_PHOTO
         if unknown:
@@ -327,8 +339,13 @@ def _set_light(scene, photo, light, i: int) -> None:
             raise JobError(f"photo {i + 1}: no Sun object named {light}")
         photo.light_source, photo.sun = "SUN_OBJECT", obj
     elif isinstance(light, list):
-        if len(light) != 3:
-            raise JobError(f"photo {i + 1}: light must be [x, y, z]")
+        if len(light) != 3 or not all(isinstance(x, int | float) and not isinstance(x, bool)
+                                      for x in light):
+            raise JobError(f"photo {i + 1}: light must be three numbers [x, y, z] (the "
+                           f"world direction towards the light), got {light!r}")
+        if not all(math.isfinite(x) for x in light) or not any(x != 0 for x in light):
+            raise JobError(f"photo {i + 1}: light [x, y, z] must be finite and not all zero, "
+                           f"got {light!r}")
         photo.light_source, photo.direction = "DIRECTION", tuple(float(x) for x in light)
     elif isinstance(light, dict) and "sun" in light:
         # date, latitude and longitude left out: from the photo's EXIF and GPS

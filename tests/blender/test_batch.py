@@ -119,6 +119,9 @@ def test_same_seed_same_table(job_dir):
     ((f"irradiance = {math.pi}", "irradiance = inf"), "irradiance must be positive and finite"),
     ((f"irradiance = {math.pi}", "irradiance = [1, 2]"),
      "irradiance must be one number or [r, g, b]"),
+    # a light that cannot be a direction, said as such
+    (('light = "Sun"', "light = [0.0, nan, 1.0]"), "must be finite and not all zero"),
+    (('light = "Sun"', 'light = ["a", "b", "c"]'), "light must be three numbers [x, y, z]"),
 ])
 def test_bad_job_exits_1_with_one_line(job_dir, change, message):
     result = _run(job_dir, GOOD.replace(*change), "bad.toml")
@@ -163,6 +166,24 @@ def test_camera_found_by_the_photo_name_when_left_out(job_dir):
     assert report["capture"]["photos"][0]["name"] == "view0.exr"
     assert any(ln.startswith("note: ") and "assumed equal" in ln
                for ln in result.stdout.splitlines())
+
+
+def test_an_unknown_flag_exits_2_with_the_usage():
+    result = subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch",
+                             "--frobnicate"], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2 and "usage" in result.stderr
+
+
+def test_ctrl_c_exits_130_with_one_line(monkeypatch, capsys):
+    from brdf_reconstruct.brdf_addon import batch
+
+    def interrupted(path):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch, "run_job", interrupted)
+    assert batch.main(["job.toml"]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: interrupted")
 
 
 def test_wrong_command_line_exits_2():

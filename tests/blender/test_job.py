@@ -117,10 +117,30 @@ radius = 33.0
     ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\n[photo.probe]\n'
      'image = "lit/probe.exr"\ncenter = [10]\nradius = 5', "probe center must be"),
     ('object = [', "not valid TOML"),
+    # issue 13: what used to be a traceback or an unclear message
+    ('object = "S"\nsettings = 3\n[[photo]]\nimage = "lit/0012.exr"',
+     r"\[settings\] must be a table"),
+    ('object = "S"\nphoto = ["lit/0012.exr"]', r"photos must be \[\[photo\]\] tables"),
+    ('object = "S"\nout = "scan.ply"\n[[photo]]\nimage = "lit/0012.exr"',
+     "is a file or lies below the file"),
+    ('object = "S"\nout = "scan.ply/out"\n[[photo]]\nimage = "lit/0012.exr"',
+     "lies below the file"),
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\nirradiance = 0',
+     "irradiance must be positive and finite"),
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\nirradiance = nan',
+     "irradiance must be positive and finite"),
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\nirradiance = [1, 2]',
+     r"irradiance must be one number or \[r, g, b\]"),
 ])
 def test_mistakes_are_one_sentence(folder, text, message):
     with pytest.raises(job_file.JobError, match=message):
         _load(folder, text)
+
+
+def test_a_byte_order_mark_is_not_an_error(folder):
+    text = 'object = "S"\n[[photo]]\nimage = "lit/0012.exr"\n'
+    (folder / "job.toml").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert job_file.load(folder / "job.toml").object == "S"
 
 
 def test_missing_job_file(tmp_path):
