@@ -1,0 +1,176 @@
+"""Bases against measured materials, cross-validated: which basis reconstructs real
+(MERL) BRDFs from few samples, per fold and per material class.
+
+    .venv/bin/python bench/measured_bench.py [--quick] [--folds K] [--bases a,b,...]
+
+The 80 measured materials of the pack (``testkit.measured.PACK``, Sztrajman et al.
+2021 networks of MERL) are split into 5 stratified folds of 16
+(``testkit.measured.folds``). For each fold, every basis is built without that
+fold's materials and scored on them, so no material is scored by a basis that
+saw it:
+
+- ``analytic``: the built-in analytic database (today's default; it holds no
+  measured material, so it is the same basis in every fold);
+- ``measured``: PCA of the 64 other measured materials (same mapping, k = 40);
+- ``union``: the analytic database and the 64 measured materials together.
+
+Per held-out material: reconstruction (``core.method.reconstruct``, exact
+values at the cells, no photos) from n = 6 and n = 20 condition-optimal cells
+and from 2000 random cells, seeds 0 and 1; score: rendered-sphere relative RMSE
+under four lights (``render.REFERENCE_LIGHT`` and ``metrics.SPHERE_LIGHTS``).
+Writes ``bench/results/measured.json`` and ``measured.png`` (``--quick``:
+``measured_quick.*``). About 25 minutes on the 2-core machine with analytic
+and measured (``--quick``: 2 folds, seed 0, 12 minutes on the loaded machine).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import common
+import numpy as np
+
+from brdf_reconstruct.core.brdf import basis, database, merl, metrics, nbrdf, render
+from brdf_reconstruct.core.method import reconstruct, sampling
+from testkit import measured
+
+LIGHTS = np.vstack([render.REFERENCE_LIGHT, metrics.SPHERE_LIGHTS])
+SETTINGS = (("n=6", 6, "optimal"), ("n=20", 20, "optimal"), ("2000 random", 2000, "random"))
+BASES = ("analytic", "measured", "union")
+
+
+def _cells(B, kind, n, seed):
+    candidates = merl.cells_from_linear(B.cells)
+    rng = np.random.default_rng(seed)
+    if kind == "optimal":
+        return sampling.optimal_cells(B, candidates, n, rng)
+    return candidates[rng.choice(len(candidates), n, replace=False)]
+
+
+def _score(B, truth, cells) -> float:
+    values = truth.reshape(3, -1)[:, merl.linear_index(cells)].T
+    rec = reconstruct.reconstruct(B, cells, values)
+    if not np.all(np.isfinite(rec.table[np.isfinite(truth)])):
+        raise AssertionError("a reconstruction holds NaN or Inf")
+    return metrics.sphere_error(rec.table, truth, lights=LIGHTS)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="2 folds, seed 0")
+    parser.add_argument("--folds", type=int, default=5, help="folds of the 80 (default 5)")
+    parser.add_argument("--bases", default=",".join(BASES),
+                        help=f"comma-separated, of {', '.join(BASES)}")
+    args = parser.parse_args(argv)
+    bases = [b for b in args.bases.split(",") if b]
+    if set(bases) - set(BASES) or not bases:
+        print(f"error: --bases must name some of {', '.join(BASES)}", file=sys.stderr)
+        return 2
+    if not measured.PACK.is_file():
+        print(f"error: {measured.PACK} not found (set BRDF_SHARED_DATA)", file=sys.stderr)
+        return 1
+    info = common.machine("bases against measured materials, cross-validated")
+    seeds = (0,) if args.quick else (0, 1)
+    pack = nbrdf.load(measured.PACK)
+    folds = measured.folds(pack.names, k=args.folds)
+    if args.quick:
+        folds = folds[:2]
+    analytic = basis.load_default()
+    analytic_tables = None
+    rows, builds = [], []
+    t_all = time.perf_counter()
+    for f, held in enumerate(folds):
+        train = [n for n in pack.names if n not in held]
+        built = {}
+        if "analytic" in bases:
+            built["analytic"] = analytic
+        if "measured" in bases:
+            t0 = time.perf_counter()
+            built["measured"] = basis.build((nbrdf.tabulate(pack, pack.index(n)) for n in train),
+                                            n_tables=len(train))
+            builds.append({"fold": f, "basis": "measured", "tables": len(train),
+                           "seconds": time.perf_counter() - t0})
+        if "union" in bases:
+            if analytic_tables is None:  # float32, generated once: 2.6 GB
+                analytic_tables = [database.make_table(s).astype(np.float32)
+                                   for s in database.training_specs()]
+            t0 = time.perf_counter()
+            stream = [*analytic_tables]
+            built["union"] = basis.build(
+                iter(stream + [nbrdf.tabulate(pack, pack.index(n)) for n in train]),
+                n_tables=len(stream) + len(train))
+            builds.append({"fold": f, "basis": "union", "tables": len(stream) + len(train),
+                           "seconds": time.perf_counter() - t0})
+        cells = {(b, label, seed): _cells(B, kind, n, seed) for b, B in built.items()
+                 for label, n, kind in SETTINGS for seed in seeds}
+        for name in held:
+            truth = nbrdf.tabulate(pack, pack.index(name))
+            for (b, label, seed), c in cells.items():
+                rows.append({"fold": f, "material": name,
+                             "class": measured.material_class(name), "basis": b,
+                             "setting": label, "seed": seed,
+                             "sphere_rel_rmse": _score(built[b], truth, c)})
+        print(f"fold {f + 1}/{len(folds)} done ({time.perf_counter() - t_all:.0f} s)",
+              flush=True)
+        del built
+    summary = {b: {label: float(np.median([r["sphere_rel_rmse"] for r in rows
+                                          if r["basis"] == b and r["setting"] == label]))
+                   for label, _, _ in SETTINGS} for b in bases}
+    per_fold = {b: {label: [float(np.median([r["sphere_rel_rmse"] for r in rows
+                                             if r["basis"] == b and r["setting"] == label
+                                             and r["fold"] == f])) for f in range(len(folds))]
+                    for label, _, _ in SETTINGS} for b in bases}
+    per_class = {b: {k: {label: float(np.median(v)) if (v := [
+        r["sphere_rel_rmse"] for r in rows if r["basis"] == b and r["setting"] == label
+        and r["class"] == k]) else None for label, _, _ in SETTINGS}
+        for k in measured.CLASSES} for b in bases}
+    per_material = {b: {n: float(np.median([r["sphere_rel_rmse"] for r in rows
+                                            if r["basis"] == b and r["material"] == n
+                                            and r["setting"] == "n=20"]))
+                        for n in sorted({r["material"] for r in rows})} for b in bases}
+    doc = {"machine": common.machine_end(info), "folds": folds, "seeds": list(seeds),
+           "lights": LIGHTS.tolist(), "summary_median_sphere_rel_rmse": summary,
+           "per_fold": per_fold, "per_class": per_class, "per_material_n20": per_material,
+           "builds": builds, "seconds": time.perf_counter() - t_all, "runs": rows}
+    stem = "measured_quick" if args.quick else "measured"  # a quick run never replaces
+    path = common.write_json(common.RESULTS / f"{stem}.json", doc, arguments=vars(args))
+    plot(doc, common.RESULTS / f"{stem}.png")
+    print(json.dumps({"summary": summary, "per_class": per_class}, indent=1))
+    print(f"-> {path}")
+    return 0
+
+
+def plot(doc: dict, path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    bases = list(doc["summary_median_sphere_rel_rmse"])
+    labels = [label for label, _, _ in SETTINGS]
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.2))
+    width = 0.8 / len(bases)
+    for i, b in enumerate(bases):
+        axes[0].bar(np.arange(len(labels)) + i * width,
+                    [doc["summary_median_sphere_rel_rmse"][b][x] for x in labels], width, label=b)
+        classes = list(doc["per_class"][b])
+        axes[1].bar(np.arange(len(classes)) + i * width,
+                    [doc["per_class"][b][k]["n=20"] or 0 for k in classes], width, label=b)
+    axes[0].set_xticks(np.arange(len(labels)) + 0.4 - width / 2, labels)
+    axes[0].set_title("median rendered-sphere error, held-out measured materials", fontsize=9)
+    axes[1].set_xticks(np.arange(len(classes)) + 0.4 - width / 2, classes)
+    axes[1].set_title("per class, n = 20 condition-optimal cells", fontsize=9)
+    for ax in axes:
+        ax.set_yscale("log")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,62 @@
+"""The measured MERL pack for tests and benches: where it is, each material's class,
+and cross-validation folds that never score a material the basis was built from.
+
+No bpy. The pack is ``merl_nbrdf.npz`` in ``../shared/data`` beside the repository,
+or in ``$BRDF_SHARED_DATA``.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+
+import numpy as np
+
+DATA = pathlib.Path(os.environ.get(
+    "BRDF_SHARED_DATA", pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"))
+PACK = DATA / "merl_nbrdf.npz"
+
+CLASSES = ("metal", "paint", "plastic", "fabric", "wood", "stone", "rubber")
+# MERL names that the name rules below would not place (or would place wrongly)
+_NAMED = {
+    "aluminium": "metal", "brass": "metal", "chrome": "metal", "ss440": "metal",
+    "steel": "metal", "black-oxidized-steel": "metal", "grease-covered-steel": "metal",
+    "two-layer-gold": "metal", "two-layer-silver": "metal", "tungsten-carbide": "metal",
+    "chrome-steel": "metal", "nickel": "metal",
+    "colonial-maple-223": "wood", "fruitwood-241": "wood", "ipswich-pine-221": "wood",
+    "natural-209": "wood", "pickled-oak-260": "wood", "cherry-235": "wood",
+    "special-walnut-224": "wood",
+    "alumina-oxide": "stone", "aventurnine": "stone", "black-obsidian": "stone",
+    "hematite": "stone", "silicon-nitrade": "stone", "white-marble": "stone",
+    "blue-rubber": "rubber", "green-latex": "rubber", "neoprene-rubber": "rubber",
+    "pure-rubber": "rubber", "white-diffuse-bball": "rubber", "polyurethane-foam": "rubber",
+    "nylon": "plastic", "polyethylene": "plastic", "pvc": "plastic", "teflon": "plastic",
+    "delrin": "plastic",
+}
+
+
+def material_class(name: str) -> str:
+    """One of :data:`CLASSES` for a MERL material name."""
+    if name in _NAMED:
+        return _NAMED[name]
+    for word, kind in (("fabric", "fabric"), ("velvet", "fabric"), ("paint", "paint"),
+                       ("plastic", "plastic"), ("acrylic", "plastic"),
+                       ("phenolic", "plastic"), ("rubber", "rubber"), ("metal", "metal")):
+        if word in name:
+            return kind
+    raise ValueError(f"no class known for MERL material {name}")
+
+
+def folds(names, k: int = 5, seed: int = 0) -> list[list[str]]:
+    """``k`` disjoint held-out sets covering ``names``, each class spread over the
+    folds (stratified, shuffled by ``seed``): fold f's basis is built from the
+    others, so no material is scored by a basis that saw it."""
+    rng = np.random.default_rng(seed)
+    out: list[list[str]] = [[] for _ in range(k)]
+    position = 0
+    for kind in CLASSES:
+        members = sorted(n for n in names if material_class(n) == kind)
+        for n in rng.permutation(members):
+            out[position % k].append(str(n))
+            position += 1
+    return [sorted(f) for f in out]
