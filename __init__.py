@@ -23,19 +23,21 @@ def register() -> None:
     """Register the extension's classes and attach ``Scene.brdf``."""
     import bpy
 
-    from .brdf_addon import props
+    from .brdf_addon import props, versioning
 
     for cls in _classes():
         bpy.utils.register_class(cls)
     props.attach()
+    versioning.attach()  # settings saved by 0.1.0: degrees -> radians
 
 
 def unregister() -> None:
     """Undo ``register()``."""
     import bpy
 
-    from .brdf_addon import props
+    from .brdf_addon import props, versioning
 
+    versioning.detach()
     props.detach()
     for cls in reversed(_classes()):
         bpy.utils.unregister_class(cls)

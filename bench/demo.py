@@ -108,8 +108,8 @@ def main(argv=None) -> int:
 
     print("[1/4] the BRDF basis (built once and cached, about 2 min on a fresh machine)",
           flush=True)
-    B = basis.load_default(progress=lambda i: print(f"      training table {i}/150",
-                                                    end="\r", flush=True))
+    B = basis.load_default(progress=lambda _f, message: print(f"      {message}", end="\r",
+                                                              flush=True))
     print(f"      {B.n_components} components over {len(B.cells)} cells "
           f"({time.perf_counter() - t0:.0f} s)", flush=True)
 

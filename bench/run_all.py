@@ -1,9 +1,10 @@
 """``make bench``: every benchmark in turn; results land in ``bench/results/``.
 
-About 3 to 4 hours on the 2-core machine: reliable_bench (~45 min), tradeoff
-(~1 h), heldout with the Mitsuba peer (~20 min), scaling, extremes, SfM, core
-the Cycles KL samples, the sphere probe (~2 min) and camera-style inputs
-(~13 min). ``--quick`` runs the reduced version of each that has one.
+About 4 hours on the 2-core machine: reliable_bench (~45 min), tradeoff
+(~1 h), heldout with the Mitsuba peer (~20 min), scaling, extremes, SfM, core,
+the basis build (~3 min), the bases against measured materials (~25 min), the
+Cycles KL samples, the sphere probe (~2 min), the bad-input sweep (~4 to 8 min)
+and camera-style inputs (~13 min). ``--quick`` runs the reduced version of each that has one.
 ``bench/README.md`` is the index: which question each answers, its result file
 and headline number.
 """
@@ -17,10 +18,12 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 # each in its own process: they set their own thread pinning and Blender scenes
-SCRIPTS = ("core_bench.py", "reliable_bench.py", "cycles_kl_bench.py", "tradeoff.py",
-           "extremes_bench.py", "scaling_bench.py", "sfm.py", "heldout_bench.py",
-           "probe_bench.py", "camera_inputs_bench.py")
-NO_QUICK = ("cycles_kl_bench.py", "sfm.py", "camera_inputs_bench.py")  # no reduced version
+SCRIPTS = ("core_bench.py", "basis_build_bench.py", "measured_bench.py", "reliable_bench.py",
+           "cycles_kl_bench.py", "tradeoff.py", "extremes_bench.py", "bad_inputs.py",
+           "scaling_bench.py", "sfm.py", "heldout_bench.py", "probe_bench.py",
+           "camera_inputs_bench.py")
+# no reduced version
+NO_QUICK = ("cycles_kl_bench.py", "sfm.py", "camera_inputs_bench.py", "basis_build_bench.py")
 # arguments a script always gets (sfm.py prints only unless told where to write)
 ALWAYS = {"sfm.py": ["--out", str(HERE / "results" / "sfm.json")]}
 

@@ -68,6 +68,13 @@ def _check_output_folder(scene) -> None:
     out = outputs.output_path(scene)
     if out.exists() and not out.is_dir():
         raise ValueError(f"the output folder {out} is a file: choose a folder")
+    existing = next(p for p in (out, *out.parents) if p.exists())
+    if not existing.is_dir():
+        raise ValueError(f"the output folder {out} lies below the file {existing}: "
+                         "choose a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"the output folder {out} cannot be written ({existing} is not "
+                         "writable for you): choose another folder")
     replaced = files.files_a_run_would_replace(out)
     if replaced and not scene.brdf.overwrite:
         shown = ", ".join(replaced[:4]) + (f" and {len(replaced) - 4} more"
@@ -102,7 +109,9 @@ def capture_inputs(gathered) -> tuple[list[pipeline.PhotoInput], dict]:
 
 def capture_notes(capture: dict) -> list[str]:
     """One line per thing done to the photos that the user should know: a scaled
-    or undistorted photo, an exposure scale, saturated pixels, the irradiance rule."""
+    or undistorted photo, an exposure scale, saturated pixels, the irradiance rule,
+    and each photo's warnings (its ``notes``: a photo partly inconsistent with its
+    light, ``core.capture.photo_checks``)."""
     lines = []
     photos = capture.get("photos", [])
     for p in photos:
@@ -118,6 +127,7 @@ def capture_notes(capture: dict) -> list[str]:
         uncertainty = p.get("light", {}).get("uncertainty_deg")
         if uncertainty is not None:
             lines.append(f"{name}: sphere-probe light, uncertainty {uncertainty:.2f} deg")
+        lines.extend(f"{name}: {note}" for note in p.get("notes", []))
     if len(photos) > 1 and all("assumed equally exposed" in p.get("exposure", "")
                                for p in photos):
         lines.append("no exposure EXIF: photos assumed equally exposed")

@@ -3,6 +3,11 @@
 See docs/user-guide.md (the job-file reference) for the format. Paths are relative
 to the job file. :func:`load` parses and checks it (no bpy calls);
 :func:`apply` builds the scene through the same operators the panel uses.
+
+Angles are degrees in the job file, as the panel shows them: ``peak_max_angle``
+in [settings] and ``north_offset`` in [photo.sun]. Their properties are Blender
+``ANGLE`` properties holding radians, so :func:`apply` converts, and checks the
+job's degrees against the property's range in degrees.
 """
 
 from __future__ import annotations
@@ -11,8 +16,6 @@ import dataclasses
 import math
 import pathlib
 import tomllib
-
-from .presets import PRESETS
 
 KNOWN_TOP = {"blend", "mesh", "mesh_up", "object", "colmap", "up", "out", "overwrite",
              "settings", "photo"}
@@ -93,12 +96,14 @@ def load(path) -> Job:
         if job.blend == job.out / "scene.blend":
             raise JobError(f"out {job.out} would replace the job's own {job.blend.name}: "
                            "choose another out folder")
+        _check_input(job.blend, "blend")
     if "mesh" in data and "object" in data:
         raise JobError("give either mesh or object, not both")
     if "mesh" in data:
         job.mesh = _file(base, data["mesh"], "mesh")
         if job.mesh.suffix.lower() not in (".ply", ".obj", ".stl"):
             raise JobError(f"mesh must be .ply, .obj or .stl, got {job.mesh.name}")
+        _check_input(job.mesh, "mesh")
     elif "object" in data:
         job.object = str(data["object"])
     else:
@@ -135,6 +140,10 @@ def load(path) -> Job:
                 raise JobError(f"camera {entry['camera']} has no photo: give photo {i + 1} "
                                "an image")
             raise JobError(f"photo {i + 1} needs an image")
+        camera = entry.get("camera")
+        if camera is not None and not (isinstance(camera, str) and camera.strip()):
+            raise JobError(f"photo {i + 1}: camera must be a camera's name or its image "
+                           f"name, got {camera!r}")
         photo = dict(entry)
         for kind in ("sun", "probe"):  # a [photo.sun] or [photo.probe] table is the light
             if kind in photo:
@@ -154,9 +163,9 @@ def load(path) -> Job:
         margin = entry.get("silhouette_margin", 0)
         if not (isinstance(margin, int) and margin >= 0):
             raise JobError(f"photo {i + 1}: silhouette_margin must be a whole number of pixels")
-        if "exposure" in entry and not (isinstance(entry["exposure"], int | float)
-                                        and entry["exposure"] > 0):
-            raise JobError(f"photo {i + 1}: exposure must be a positive number")
+        if "exposure" in entry and not _positive_finite(entry["exposure"]):
+            raise JobError(f"photo {i + 1}: exposure must be a positive finite number, "
+                           f"got {entry['exposure']!r}")
         if "irradiance" in entry:
             _check_irradiance(i, entry["irradiance"])
         if isinstance(photo.get("light"), dict):
@@ -170,6 +179,20 @@ def load(path) -> Job:
             photo["light"] = light
         job.photos.append(photo)
     return job
+
+
+def _check_input(path: pathlib.Path, field: str) -> None:
+    """JobError (one sentence) when the job's ``blend`` or ``mesh`` file cannot be
+    what it claims: empty, another format, a truncated PLY, a mesh without faces
+    (``core.capture.input_files``). Checked in :func:`load`, before any work:
+    Blender would otherwise stop with a traceback, or import nothing."""
+    from ..core.capture import input_files
+
+    check = input_files.check_blend if field == "blend" else input_files.check_mesh
+    try:
+        check(path, field)
+    except ValueError as error:
+        raise JobError(str(error)) from None
 
 
 def _positive_finite(value) -> bool:
@@ -189,32 +212,42 @@ def _check_irradiance(i: int, value) -> None:
         raise JobError(f"photo {i + 1}: irradiance must be positive and finite, got {value!r}")
 
 
-def _check_setting(settings, key: str, value) -> None:
-    """JobError unless ``value`` fits setting ``key`` of ``scene.brdf`` as it is: the
-    right type, finite, inside the setting's range, one of its choices. Blender
-    would otherwise clamp it silently (samples = -3 running with 1)."""
+def _check_setting(settings, key: str, value, what: str | None = None) -> None:
+    """JobError unless ``value`` fits property ``key`` of ``settings`` as it is: the
+    right type, finite, inside the property's range, one of its choices. Blender
+    would otherwise clamp it silently (samples = -3 running with 1).
+
+    settings: ``scene.brdf``, or anything with its ``bl_rna`` (the ``BRDFPhoto``
+        class, for a [photo.sun] table's numbers).
+    value: as the job gives it; an ``ANGLE`` property holds radians, the job
+        degrees, so its range is compared (and named) in degrees.
+    what: how the message names the value (default ``setting <key>``).
+    """
     prop = settings.bl_rna.properties[key]
+    what = f"setting {key}" if what is None else what
     if prop.type == "BOOLEAN":
         if not isinstance(value, bool):
-            raise JobError(f"setting {key} = {value!r}: must be true or false")
+            raise JobError(f"{what} = {value!r}: must be true or false")
         return
     if prop.type == "ENUM":
         choices = [item.identifier for item in prop.enum_items]
         if value not in choices:
-            raise JobError(f"setting {key} = {value!r}: must be one of {', '.join(choices)}")
+            raise JobError(f"{what} = {value!r}: must be one of {', '.join(choices)}")
         return
     if prop.type in ("INT", "FLOAT"):
         number = int | float if prop.type == "FLOAT" else int
         if isinstance(value, bool) or not isinstance(value, number):
             kind = "a whole number" if prop.type == "INT" else "a number"
-            raise JobError(f"setting {key} = {value!r}: must be {kind}")
+            raise JobError(f"{what} = {value!r}: must be {kind}")
         if not math.isfinite(value):
-            raise JobError(f"setting {key} = {value!r}: must be finite")
-        low, high = prop.hard_min, prop.hard_max
+            raise JobError(f"{what} = {value!r}: must be finite")
+        low, high, unit = prop.hard_min, prop.hard_max, ""
+        if prop.subtype == "ANGLE":  # the job's degrees against the range in degrees
+            low, high, unit = math.degrees(low), math.degrees(high), " degrees"
         if not low <= value <= high:
-            bounded = high < (2**31 - 1 if prop.type == "INT" else 1e30)
+            bounded = prop.hard_max < (2**31 - 1 if prop.type == "INT" else 1e30)
             span = f"from {low:g} to {high:g}" if bounded else f"at least {low:g}"
-            raise JobError(f"setting {key} = {value!r}: must be {span}")
+            raise JobError(f"{what} = {value!r}: must be {span}{unit}")
 
 
 def _check_light_table(i: int, light: dict) -> None:
@@ -245,16 +278,42 @@ def _check_light_table(i: int, light: dict) -> None:
 
 
 def apply(job: Job, scene) -> None:
-    """Fill ``scene`` from the job: mesh, cameras, settings, photos and lights."""
+    """Fill ``scene`` from the job: mesh, cameras, settings, photos and lights.
+
+    The settings and a [photo.sun] table's numbers are checked against the panel's
+    types and ranges before anything is imported (JobError, one sentence). Angles
+    (``peak_max_angle``, ``north_offset``) are degrees in the job and radians in
+    ``scene.brdf``. The preset is set first, then the job's other settings over it:
+    as in the panel, the preset becomes Custom when one of its values is set to
+    another value than the preset's (``preset = "FAST"`` with ``trials = 5`` is
+    Custom; with ``trials = 4``, Fast's own value, it stays Fast; ``trials = 16``
+    alone keeps the default Balanced, whose value it is).
+    """
     import bpy
 
     from . import colmap_import
+    from .props import BRDFPhoto
+
+    settings = scene.brdf
+    for key, value in job.settings.items():
+        _check_setting(settings, key, value)
+    for i, entry in enumerate(job.photos):
+        light = entry.get("light")
+        sun = light.get("sun") if isinstance(light, dict) else None
+        for key in ("utc_offset", "latitude", "longitude", "north_offset"):
+            if isinstance(sun, dict) and key in sun:
+                _check_setting(BRDFPhoto, key, sun[key], f"photo {i + 1}: [photo.sun] {key}")
 
     if job.mesh is not None:
         before = set(bpy.data.objects)
         importer = {".ply": bpy.ops.wm.ply_import, ".obj": bpy.ops.wm.obj_import,
                     ".stl": bpy.ops.wm.stl_import}[job.mesh.suffix.lower()]
-        importer(filepath=str(job.mesh), **MESH_AXES[job.mesh_up])
+        try:
+            importer(filepath=str(job.mesh), **MESH_AXES[job.mesh_up])
+        except RuntimeError as error:  # the importer's own report: a file load() passed
+            reason = str(error).strip().splitlines()[-1].removeprefix("Error:").strip()
+            raise JobError(f"mesh {job.mesh.name} could not be imported ({reason}): "
+                           "export the scan again") from None
         new = [o for o in bpy.data.objects if o not in before and o.type == "MESH"]
         if len(new) != 1:
             raise JobError(f"mesh {job.mesh.name} holds {len(new)} mesh objects, not one")
@@ -263,7 +322,6 @@ def apply(job: Job, scene) -> None:
         target = scene.objects.get(job.object)
         if target is None or target.type != "MESH":
             raise JobError(f"no mesh object named {job.object} in the scene")
-    settings = scene.brdf
     settings.target = target
     if job.colmap is not None:
         colmap_import.import_cameras(scene, str(job.colmap))
@@ -273,16 +331,17 @@ def apply(job: Job, scene) -> None:
         settings.scene_up = light_sources.up_from_cameras(scene)[0].tolist()
     elif job.up is not None:
         settings.scene_up = tuple(float(x) for x in job.up)
-    # the preset first, then the job's own values over it (which makes it Custom)
+    # the preset first, then the job's own values over it: one that differs from the
+    # preset's makes it Custom (the update callbacks of brdf_addon.props)
     order = sorted(job.settings.items(), key=lambda kv: kv[0] != "preset")
     for key, value in order:
-        _check_setting(settings, key, value)
+        stored = value
+        if settings.bl_rna.properties[key].subtype == "ANGLE":
+            stored = math.radians(value)  # the job's degrees; checked above
         try:
-            setattr(settings, key, value)
+            setattr(settings, key, stored)
         except (TypeError, ValueError) as error:
             raise JobError(f"setting {key} = {value!r}: {error}") from None
-    if "preset" in job.settings and set(job.settings) & set(PRESETS.get(settings.preset, {})):
-        settings.preset = "CUSTOM"
     settings.output_dir = str(job.out)
     settings.overwrite = job.overwrite
     for i, entry in enumerate(job.photos):
@@ -359,7 +418,8 @@ def _set_light(scene, photo, light, i: int) -> None:
         photo.place_from_exif = "latitude" not in sun  # load() checked they come in pairs
         if not photo.place_from_exif:
             photo.latitude, photo.longitude = float(sun["latitude"]), float(sun["longitude"])
-        photo.north_offset = float(sun.get("north_offset", 0.0))
+        # degrees in the job (checked by apply), radians in the property
+        photo.north_offset = math.radians(float(sun.get("north_offset", 0.0)))
     elif isinstance(light, dict) and "probe" in light:
         probe = light["probe"]
         photo.light_source = "PROBE"

@@ -76,9 +76,13 @@ def sun_position_direction(photo, scene=None, details: dict | None = None) -> np
     the scene's frame (``scene.brdf.scene_up``, +Z without a scene)."""
     when, latitude, longitude, notes = when_and_where(photo)
     local = sun.sun_direction(when, latitude, longitude)
-    sun.check_above_horizon(local, when, latitude, longitude)
+    try:
+        sun.check_above_horizon(local, when, latitude, longitude)
+    except ValueError as error:
+        raise ValueError(f"photo {photo.name}: {error}; check its date, time (and UTC "
+                         "offset) and place") from None
     up = (0.0, 0.0, 1.0) if scene is None else tuple(scene.brdf.scene_up)
-    world = scene_frame.world_from_enu(up, math.radians(photo.north_offset)) @ local
+    world = scene_frame.world_from_enu(up, photo.north_offset) @ local
     if details is not None:
         details.update(notes=notes, when=when.isoformat(), latitude=latitude,
                        longitude=longitude, up=list(up))
@@ -161,6 +165,12 @@ def photo_light(scene, photo, details: dict | None = None) -> np.ndarray:
         direction = sun_object_direction(photo.sun)
     elif source == "DIRECTION":
         direction = np.array(photo.direction, dtype=np.float64)
+        # Blender stores an infinite component as the float32 maximum: not finite either
+        shown = np.where(np.abs(direction) >= np.finfo(np.float32).max,
+                         np.copysign(np.inf, direction), direction)
+        if not np.all(np.isfinite(shown)):
+            raise ValueError(f"photo {photo.name} has a light direction that is not finite "
+                             f"({', '.join(f'{x:g}' for x in shown)}): type three numbers")
         if not np.linalg.norm(direction) > 0:
             raise ValueError(f"photo {photo.name} has a zero light direction")
     elif source == "PROBE":

@@ -9,6 +9,7 @@ created (never assigned or edited in place) and outputs go to new files.
 from __future__ import annotations
 
 import json
+import os
 import pathlib
 import time
 
@@ -26,8 +27,22 @@ BAKE_LIGHTS = np.array([[0.3, 0.2, 0.93], [-0.5, 0.4, 0.77]])
 
 
 def output_path(scene) -> pathlib.Path:
-    """The run's output folder, absolute (Blender's ``//`` resolved); not created."""
-    return pathlib.Path(bpy.path.abspath(scene.brdf.output_dir or "//brdf_out"))
+    """The run's output folder, absolute (Blender's ``//`` resolved); not created.
+
+    ValueError (one sentence) when it would not be absolute: ``//`` in a .blend
+    that was never saved, or a path without ``//`` that is not absolute, would
+    resolve against the folder Blender was started from."""
+    raw = scene.brdf.output_dir or "//brdf_out"
+    path = bpy.path.abspath(raw)
+    if not os.path.isabs(path):
+        if raw.startswith("//") and not bpy.data.filepath:
+            raise ValueError(f"the output folder {raw} is relative to the .blend, which is "
+                             "not saved: save the .blend first or set an absolute output "
+                             "folder")
+        raise ValueError(f"the output folder {raw} is relative to the folder Blender was "
+                         "started from: start it with // for the .blend's folder or set "
+                         "an absolute output folder")
+    return pathlib.Path(path)
 
 
 def output_dir(scene) -> pathlib.Path:

@@ -5,11 +5,18 @@ Each panel's ``draw`` only reads ``scene.brdf`` and lays out widgets, so the
 tests drive every ``draw`` through a stand-in layout that records the calls
 (pip ``bpy`` has no window system), for each state: nothing set, photos added,
 running, results.
+
+Translation: a constant label is a plain string (Blender translates it as it
+draws). A label with values in it is a constant format string translated with
+``iface_`` (``bpy.app.translations.pgettext_iface``) and then filled, drawn with
+``translate=False``; names and messages from the data (photo, camera, region
+names, reasons, notes) are drawn with ``translate=False`` too.
 """
 
 import json
 
 import bpy
+from bpy.app.translations import pgettext_iface as iface_
 from bpy.types import Panel, UIList
 
 from . import presets
@@ -21,10 +28,17 @@ class BRDF_UL_photos(UIList):
     def draw_item(self, _context, layout, _data, item, _icon, _active_data, _active_prop,
                   _index=0, _flt_flag=0):
         row = layout.row(align=True)
-        row.label(text=item.name or "(no image)", icon="IMAGE_DATA")
-        row.label(text=item.camera.name if item.camera else "no camera",
-                  icon="CAMERA_DATA" if item.camera else "ERROR")
-        row.label(text=item.light_source.replace("_", " ").title(), icon="LIGHT_SUN")
+        if item.name:
+            row.label(text=item.name, translate=False, icon="IMAGE_DATA")
+        else:
+            row.label(text="(no image)", icon="IMAGE_DATA")
+        if item.camera:
+            row.label(text=item.camera.name, translate=False, icon="CAMERA_DATA")
+        else:
+            row.label(text="no camera", icon="ERROR")
+        # the light source's own UI name (constant, so translated as it draws)
+        light = item.bl_rna.properties["light_source"].enum_items[item.light_source]
+        row.label(text=light.name, icon="LIGHT_SUN")
 
 
 class _BRDFPanel:
@@ -50,7 +64,9 @@ class BRDF_PT_main(_BRDFPanel, Panel):
         layout.prop(s, "target")
         layout.prop(s, "region_mode")
         if s.target is not None and s.target.type == "MESH" and s.region_mode == "MATERIAL_SLOT":
-            layout.label(text=f"{max(len(s.target.material_slots), 1)} region(s)")
+            regions = max(len(s.target.material_slots), 1)
+            layout.label(text=iface_("{count} region(s)").format(count=regions),
+                         translate=False)
 
 
 class BRDF_PT_cameras(_BRDFPanel, Panel):
@@ -62,7 +78,8 @@ class BRDF_PT_cameras(_BRDFPanel, Panel):
         layout = self.layout
         cameras = [o for o in context.scene.objects if o.type == "CAMERA"]
         layout.operator("brdf.import_colmap", icon="IMPORT")
-        layout.label(text=f"{len(cameras)} camera(s) in the scene")
+        layout.label(text=iface_("{count} camera(s) in the scene").format(count=len(cameras)),
+                     translate=False)
 
 
 class BRDF_PT_photos(_BRDFPanel, Panel):
@@ -183,7 +200,8 @@ class BRDF_PT_reconstruct(_BRDFPanel, Panel):
         layout = self.layout
         s = context.scene.brdf
         if s.running:
-            layout.prop(s, "progress", text=s.status or "Running", slider=True)
+            layout.prop(s, "progress", text=s.status or iface_("Running"), translate=False,
+                        slider=True)
             layout.label(text="Press Esc to cancel", icon="CANCEL")
             return
         row = layout.row()
@@ -211,25 +229,29 @@ class BRDF_PT_results(_BRDFPanel, Panel):
             box = layout.box()
             box.label(text="Photos", icon="IMAGE_DATA")
             for line in notes:
-                box.label(text=line)
+                box.label(text=line, translate=False)
         for i, r in enumerate(s.results):
             box = layout.box()
-            box.label(text=r.label, icon="MATERIAL" if r.status == "ok" else "ERROR")
+            box.label(text=r.label, translate=False,
+                      icon="MATERIAL" if r.status == "ok" else "ERROR")
             if r.status != "ok":
-                box.label(text=r.reason)
+                box.label(text=r.reason, translate=False)
                 continue
-            box.label(text=f"Trial {r.winner}, KL {r.kl:.4f}")
+            box.label(text=iface_("Trial {trial}, KL {kl:.4f}").format(trial=r.winner, kl=r.kl),
+                      translate=False)
             counts = json.loads(r.counts or "{}")
-            removed = counts.get("removed", {})
-            box.label(text=f"Samples: {counts.get('observed', 0)} observed, "
-                      + ", ".join(f"-{v} {k}" for k, v in removed.items())
-                      + f", {counts.get('reliable', 0)} reliable")
+            removed = "".join(iface_(", -{count} {stage}").format(count=v, stage=k)
+                              for k, v in counts.get("removed", {}).items())
+            box.label(text=iface_("Samples: {observed} observed{removed}, {reliable} reliable")
+                      .format(observed=counts.get("observed", 0), removed=removed,
+                              reliable=counts.get("reliable", 0)), translate=False)
             if r.bake_error >= 0:
-                box.label(text=f"Bake error {r.bake_error:.3f}")
+                box.label(text=iface_("Bake error {error:.3f}").format(error=r.bake_error),
+                          translate=False)
             if r.material is not None:
                 box.prop(r, "material", text="")
             row = box.row()
-            row.label(text=bpy.path.basename(r.table_path), icon="FILE")
+            row.label(text=bpy.path.basename(r.table_path), translate=False, icon="FILE")
             row.operator("brdf.export", icon="EXPORT", text="").index = i
             for name in ("slice_plot", "plot"):
                 if getattr(r, name) is not None:

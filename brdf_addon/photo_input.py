@@ -7,14 +7,20 @@ For each entry of ``scene.brdf.photos`` :func:`gather_photo`:
    camera RAW only where OpenImageIO has LibRaw) and its saturated pixels (the
    file's largest code, or the Saturation Level setting, on the file's own
    values);
-2. reads the mask image, refuses NaN or Inf inside it (one sentence);
-3. checks the photo's size against its camera's: the same, or the same aspect
-   ratio scaled (said in the report); anything else is an error;
+2. checks the photo's size against its camera's: the same, or the same aspect
+   ratio scaled (said in the report); anything else is an error, and so is a
+   photo under 4 pixels a side (``core.capture.photo_checks``);
+3. reads the mask image; refuses NaN or Inf inside it, values no camera
+   records (more than 2^32 times the photo's median) and a black photo, one
+   sentence each (``photo_checks``);
 4. undistorts photo, masks and saturation through the COLMAP camera model
    (``core.capture.undistort``) when the camera has lens distortion, so the pixels line
    up with the Blender (pinhole) camera;
 5. finds the light (``light_sources.photo_light``) and renders the G-buffers;
    the scan's silhouette is the mask, shrunk by the photo's silhouette margin;
+   refuses a photo black over the scan or brighter where the G-buffer says
+   shadow than where it says light, and notes one that is partly so
+   (``photo_checks.light_consistency``; the photo's ``notes``);
 6. applies the exposure scale (user, or EXIF shutter/aperture/ISO through
    ``core.capture.exif``; :func:`exposure_plan` decides for all photos at once);
 7. gathers the irradiance reference (grey card or diffuse region of the scan),
@@ -22,8 +28,9 @@ For each entry of ``scene.brdf.photos`` :func:`gather_photo`:
    (``core.capture.irradiance``).
 
 Every step says what it applied in the photo's ``report`` dict, which goes to
-``report.json`` as ``capture``. Nothing of the user's is changed: files are only
-read.
+``report.json`` as ``capture`` (warnings in its ``notes``, which
+``gathering.capture_notes`` prints and the panel shows). Nothing of the user's
+is changed: files are only read.
 """
 
 from __future__ import annotations
@@ -34,7 +41,7 @@ import bpy
 import numpy as np
 from scipy import ndimage
 
-from ..core.capture import exif, irradiance, photo_io, undistort
+from ..core.capture import exif, irradiance, photo_checks, photo_io, undistort
 from ..core.method import pipeline
 from . import gbuffer, light_sources, prefs
 
@@ -63,7 +70,9 @@ def exposure_plan(scene) -> tuple[np.ndarray, list[str]]:
 
 def check_size(name: str, camera_name: str, photo_size, want, source: str) -> str:
     """'' when the photo is its camera's size, a note when it is the same aspect
-    ratio scaled; ValueError (one sentence) otherwise. Sizes are (width, height)."""
+    ratio scaled; ValueError (one sentence) otherwise, or when the photo is under
+    ``photo_checks.MIN_SIDE_PX`` a side. Sizes are (width, height) in pixels."""
+    photo_checks.check_photo_size(name, photo_size, camera_name, want, source)
     (w, h), (cw, ch) = photo_size, want
     if (w, h) == (cw, ch):
         return ""
@@ -83,6 +92,9 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     read = photo_io.read_photo_file(path, photo.color_space)
     radiance, saturated = read.radiance, read.saturated
     h, w = radiance.shape[:2]
+    want, source = gbuffer.camera_resolution(photo.camera, scene)
+    want = (int(want[0]), int(want[1]))
+    note = check_size(photo.name, photo.camera.name, (w, h), want, source)
     report = {"name": photo.name, "file": path, "format": read.file_format,
               "bit_depth": read.bit_depth, "encoding": read.encoding,
               "encoding_reason": read.encoding_reason}
@@ -90,11 +102,10 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     if photo.mask_path:
         mask = photo_io.read_mask(bpy.path.abspath(photo.mask_path), (h, w))
     photo_io.check_finite(radiance, photo.name, mask)
+    photo_checks.check_range(radiance, photo.name, mask)
+    photo_checks.check_not_black(radiance, photo.name, mask)
     if settings.clip_level > 0:  # on the file's values, before any scaling
         saturated = saturated | np.any(radiance >= settings.clip_level, axis=-1)
-    want, source = gbuffer.camera_resolution(photo.camera, scene)
-    want = (int(want[0]), int(want[1]))
-    note = check_size(photo.name, photo.camera.name, (w, h), want, source)
     if note:
         report["scaled"] = note
     reference_mask = None
@@ -134,6 +145,14 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
         inside = ndimage.binary_erosion(g.mask, iterations=photo.silhouette_margin)
         mask = inside if mask is None else mask & inside
         report["silhouette_margin_px"] = int(photo.silhouette_margin)
+    usable = g.mask if mask is None else g.mask & mask  # the scan's pixels the run uses
+    photo_checks.check_scan_not_black(radiance, photo.name, usable)
+    consistency = photo_checks.light_consistency(radiance, cosine, g.visibility, g.region,
+                                                 usable)
+    report["light_check"] = consistency.as_dict()
+    notes = photo_checks.check_light(consistency, photo.name)
+    if notes:
+        report["notes"] = notes
     if exposure_scale != 1.0:
         radiance = radiance * exposure_scale
     report["exposure_scale"] = float(exposure_scale)

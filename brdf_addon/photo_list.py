@@ -46,7 +46,7 @@ def add_photos(scene, paths) -> tuple[list, list[str]]:
 
     Returns (added entries, one message per photo not added). A path already in
     the list is not added twice. New entries take the light (with its date,
-    place or probe), irradiance and colour space of the last entry (often all
+    place or probe), irradiance and color space of the last entry (often all
     photos share one light), else the scene's first Sun object.
     """
     settings = scene.brdf

@@ -29,7 +29,8 @@ class BRDFPreferences(AddonPreferences):
     cache_folder: StringProperty(
         name="Cache", subtype="DIR_PATH", default="",
         description="Where the basis cache goes (empty = the extension's user folder)")
-    device: EnumProperty(name="Cycles Device", items=DEVICES, default="CPU")
+    device: EnumProperty(name="Cycles Device", items=DEVICES, default="CPU",
+                         description="What renders the G-buffers and the Cycles selection")
 
     def draw(self, _context):
         layout = self.layout
@@ -66,14 +67,17 @@ def cache_dir() -> pathlib.Path:
     return basis.default_cache_dir()
 
 
-def load_basis():
-    """The PCA basis the preferences ask for (built-in, or a MERL folder), cached."""
+def load_basis(progress=None, cancelled=None):
+    """The PCA basis the preferences ask for (built-in, or a MERL folder), cached.
+    progress(fraction, message), cancelled(): as in ``core.brdf.basis.build``,
+    used when the cache misses and the basis is built (first run)."""
     from ..core.brdf import basis
 
     folder = get().database_folder
     if folder:
-        return basis.load_merl_folder(bpy.path.abspath(folder), cache_dir=cache_dir())
-    return basis.load_default(cache_dir=cache_dir())
+        return basis.load_merl_folder(bpy.path.abspath(folder), cache_dir=cache_dir(),
+                                      progress=progress, cancelled=cancelled)
+    return basis.load_default(cache_dir=cache_dir(), progress=progress, cancelled=cancelled)
 
 
 def cycles_device() -> str:

@@ -13,6 +13,10 @@ and from the held-out comparison (docs/results.md, "The speed/accuracy trade"):
   sweep materials (gold 0.19 against 0.30), at about 10x the time; 4, 16 and
   64 Cycles samples picked the same trials for the gold and 4 did as well or
   better for the plastic, so Accurate renders with 4.
+
+Choosing a preset in the panel sets these values; setting one of them to another
+value afterwards (in the panel or a job file) makes the preset Custom
+(``brdf_addon.props``, the ``update`` callbacks).
 """
 
 PRESETS = {

@@ -5,8 +5,15 @@ lit photos (:class:`BRDFPhoto`), every reliable-region, sampling, trial and KL
 setting, the seed, the run state, and the results per region
 (:class:`BRDFRegionResult`). The setting names match the ``[settings]`` table
 of the batch job file (``brdf_addon.job``), so the panel, the batch entry and
-the tests share one vocabulary. Angles are degrees here (the UI); the
-conversion to radians happens in :func:`pipeline_settings`.
+the tests share one vocabulary. Angles (``peak_max_angle``, ``north_offset``) are
+Blender ``ANGLE`` properties: radians in Python, degrees in the UI; the job file
+gives them in degrees (``brdf_addon.job.apply`` converts, :func:`settings_dict`
+converts back).
+
+Choosing a preset sets the values it names (:data:`presets.PRESETS`); editing one
+of them afterwards to a value other than the preset's turns ``preset`` to
+``"CUSTOM"`` (the ``update`` callbacks :func:`_apply_preset` and
+:func:`_preset_value_changed`).
 """
 
 import math
@@ -52,7 +59,8 @@ COLOR_SPACES = [
 
 REFERENCES = [
     ("NONE", "None", "Irradiance as given (equal across photos unless you set it)"),
-    ("CARD", "Grey Card", "A grey card facing the light, marked by the reference mask"),
+    # the identifier stays "CARD" (and the job key grey_card): only the UI says Gray
+    ("CARD", "Gray Card", "A gray card facing the light, marked by the reference mask"),
     ("SCAN", "Diffuse Region", "A diffuse part of the scan, marked by the reference mask"),
 ]
 
@@ -76,7 +84,9 @@ class BRDFPhoto(PropertyGroup):
                              description="Linear EXR/TIFF, or sRGB PNG/JPEG, of the lit object")
     camera: PointerProperty(name="Camera", type=bpy.types.Object, poll=_is_camera,
                             description="Camera the photo was taken from")
-    light_source: EnumProperty(name="Light", items=LIGHT_SOURCES, default="SUN_OBJECT")
+    light_source: EnumProperty(name="Light", items=LIGHT_SOURCES, default="SUN_OBJECT",
+                               description="Where the direction of the photo's light "
+                               "comes from")
     sun: PointerProperty(name="Sun", type=bpy.types.Object, poll=_is_sun,
                          description="Sun light whose direction is the photo's light")
     direction: FloatVectorProperty(name="Direction", size=3, subtype="DIRECTION",
@@ -89,13 +99,18 @@ class BRDFPhoto(PropertyGroup):
     utc_offset: FloatProperty(name="UTC Offset", default=0.0, min=-14.0, max=14.0,
                               description="Hours east of Greenwich of that local time "
                               "(daylight saving included)")
+    # Latitude and longitude are geographic coordinates, not rotations: degrees are
+    # how they are written (GPS EXIF, maps) and what the solar position takes
+    # (core.capture.sun), so they stay plain floats in degrees.
     latitude: FloatProperty(name="Latitude", default=0.0, min=-90.0, max=90.0,
-                            description="Degrees north")
+                            description="Geographic latitude of the place, degrees north")
     longitude: FloatProperty(name="Longitude", default=0.0, min=-180.0, max=180.0,
-                             description="Degrees east")
-    north_offset: FloatProperty(name="North Offset", default=0.0, min=-180.0, max=180.0,
+                             description="Geographic longitude of the place, degrees east")
+    # radians (Blender shows degrees); the job file's north_offset is degrees
+    north_offset: FloatProperty(name="North Offset", subtype="ANGLE", default=0.0,
+                                min=-math.pi, max=math.pi,
                                 description="Angle from the scene's +Y to geographic north, "
-                                "degrees counter-clockwise seen from above")
+                                "counter-clockwise seen from above")
     irradiance: FloatVectorProperty(name="Irradiance", size=3, min=1e-9, soft_max=100.0,
                                     default=(1.0, 1.0, 1.0), subtype="COLOR",
                                     description="Light's irradiance, W/m^2 per channel")
@@ -106,17 +121,20 @@ class BRDFPhoto(PropertyGroup):
         description="The scan's silhouette, rendered from the photo's camera, is always the "
         "mask (with the mask image, if any); this shrinks it by so many pixels, where a "
         "scan and its photo disagree at the outline")
-    color_space: EnumProperty(name="Colour Space", items=COLOR_SPACES, default="AUTO")
+    color_space: EnumProperty(name="Color Space", items=COLOR_SPACES, default="AUTO",
+                              description="How the photo's values map to linear radiance")
     exposure: FloatProperty(name="Exposure Scale", default=0.0, min=0.0, soft_max=100.0,
                             description="Factor bringing this photo to the first photo's "
                             "radiometric scale (0 = from the EXIF shutter, aperture and ISO)")
     reference_kind: EnumProperty(name="Irradiance Reference", items=REFERENCES,
-                                 default="NONE")
+                                 default="NONE",
+                                 description="What in the photo measures its irradiance "
+                                 "relative to the other photos")
     reference_mask_path: StringProperty(
         name="Reference Mask", subtype="FILE_PATH", options=PATH,
-        description="Mask of the grey card, or of a diffuse part of the scan, in this photo")
-    probe_center: FloatVectorProperty(name="Sphere Centre", size=2, default=(0.0, 0.0),
-                                      description="The sphere's centre in the probe photo, "
+        description="Mask of the gray card, or of a diffuse part of the scan, in this photo")
+    probe_center: FloatVectorProperty(name="Sphere Center", size=2, default=(0.0, 0.0),
+                                      description="The sphere's center in the probe photo, "
                                       "pixels from the top-left corner (x right, y down)")
     probe_radius: FloatProperty(name="Sphere Radius", default=0.0, min=0.0,
                                 description="The sphere's radius in the probe photo, pixels "
@@ -132,18 +150,29 @@ class BRDFPhoto(PropertyGroup):
 class BRDFRegionResult(PropertyGroup):
     """What a reconstruction produced for one region (``scene.brdf.results``)."""
 
-    region: IntProperty(name="Region")
-    label: StringProperty(name="Region Name")
-    status: StringProperty(name="Status")
-    reason: StringProperty(name="Reason")
-    winner: IntProperty(name="Chosen Trial", default=-1)
+    region: IntProperty(name="Region",
+                        description="Index of the region (material slot or face set)")
+    label: StringProperty(name="Region Name",
+                          description="Name of the region: its material, or its slot or "
+                          "face set number")
+    status: StringProperty(name="Status",
+                           description="\"ok\" if the region got a BRDF, else \"skipped\"")
+    reason: StringProperty(name="Reason",
+                           description="Why the region was skipped (empty if it was not)")
+    winner: IntProperty(name="Chosen Trial", default=-1,
+                        description="The trial the KL selection chose (-1 = none)")
     kl: FloatProperty(name="KL", description="KL divergence of the chosen trial, nats")
-    counts: StringProperty(name="Sample Counts")
+    counts: StringProperty(name="Sample Counts",
+                           description="Pixels of the region as JSON: observed, removed "
+                           "per stage, reliable")
     bake_error: FloatProperty(name="Bake Error", default=-1.0,
                               description="Relative RMSE of the baked material against the "
                               "table, under lights not used for fitting (-1 = not measured)")
-    material: PointerProperty(name="Material", type=bpy.types.Material)
-    table_path: StringProperty(name="Table", subtype="FILE_PATH", options=PATH)
+    material: PointerProperty(name="Material", type=bpy.types.Material,
+                              description="The material baked from the chosen table")
+    table_path: StringProperty(name="Table", subtype="FILE_PATH", options=PATH,
+                               description="The MERL .binary table the run wrote for the "
+                               "region")
     plot: PointerProperty(name="Photo vs Render", type=bpy.types.Image,
                           description="The photo and the chosen trial's render, same exposure")
     slice_plot: PointerProperty(name="BRDF Slice", type=bpy.types.Image,
@@ -151,10 +180,39 @@ class BRDFRegionResult(PropertyGroup):
                                 "theta_d down, log scale")
 
 
+# True while _apply_preset sets a preset's values, so that its own assignments do
+# not turn the preset Custom (updates run on the main thread, one at a time)
+_applying_preset = False
+
+
 def _apply_preset(self, _context):
-    if self.preset in PRESETS:
-        for key, value in PRESETS[self.preset].items():
+    """Update of ``preset``: set the chosen preset's values (Custom sets none)."""
+    global _applying_preset
+    values = PRESETS.get(self.preset)
+    if values is None:
+        return
+    _applying_preset = True
+    try:
+        for key, value in values.items():
             setattr(self, key, value)
+    finally:
+        _applying_preset = False
+
+
+def _differs(value, preset_value) -> bool:
+    if isinstance(preset_value, float):  # stored as float32
+        return not math.isclose(value, preset_value, rel_tol=1e-6, abs_tol=1e-9)
+    return value != preset_value
+
+
+def _preset_value_changed(self, _context):
+    """Update of each setting a preset names: a value other than the chosen preset's
+    makes the preset Custom; the preset's own value keeps it."""
+    if _applying_preset:
+        return
+    values = PRESETS.get(self.preset)
+    if values is not None and any(_differs(getattr(self, k), v) for k, v in values.items()):
+        self.preset = "CUSTOM"
 
 
 class BRDFSettings(PropertyGroup):
@@ -164,12 +222,15 @@ class BRDFSettings(PropertyGroup):
                             description="The photogrammetry mesh to give a BRDF")
     region_mode: EnumProperty(
         name="Regions", default="MATERIAL_SLOT",
+        description="How the scan is split into regions, one BRDF each",
         items=[("MATERIAL_SLOT", "Material Slots", "One BRDF per material slot (an object "
                 "without slots is one region)"),
                ("FACE_SET", "Face Sets", "One BRDF per sculpt face set (a mesh without "
                 "face sets is one region)")])
-    photos: CollectionProperty(type=BRDFPhoto)
-    active_photo: IntProperty(name="Active Photo", default=0, min=0)
+    photos: CollectionProperty(type=BRDFPhoto, name="Photos",
+                               description="The lit photos, each with its camera and light")
+    active_photo: IntProperty(name="Active Photo", default=0, min=0,
+                              description="Index of the photo selected in the list")
 
     # reliable region (paper Sec. 3.1)
     use_curvature: BoolProperty(name="Curvature", default=True,
@@ -185,9 +246,11 @@ class BRDFSettings(PropertyGroup):
     use_brightest: BoolProperty(name="Brightest Peak", default=True,
                                 description="Take the brightest pixel as the specular peak "
                                 "(Eq. 2)")
-    peak_max_angle: FloatProperty(name="Peak Max Angle", default=30.0, min=0.0, max=180.0,
+    # radians (Blender shows degrees); the job file's peak_max_angle is degrees
+    peak_max_angle: FloatProperty(name="Peak Max Angle", subtype="ANGLE",
+                                  default=math.radians(30.0), min=0.0, max=math.pi,
                                   description="Eq. 2 only if the brightest pixel's normal is "
-                                  "within this many degrees of h")
+                                  "within this angle of h")
     clip_level: FloatProperty(name="Saturation Level", default=0.0, min=0.0,
                               description="Pixels with a channel at or above this linear "
                               "value of the file (before exposure scaling) are saturated and "
@@ -203,25 +266,35 @@ class BRDFSettings(PropertyGroup):
     # sampling and trials (paper Sec. 3.2)
     preset: EnumProperty(
         name="Preset", default="BALANCED", update=_apply_preset,
+        description="Samples, trials and selection as measured for a speed/accuracy trade; "
+        "changing one of them makes the preset Custom",
         items=[("FAST", "Fast", HINTS["FAST"]), ("BALANCED", "Balanced", HINTS["BALANCED"]),
-               ("ACCURATE", "Accurate", HINTS["ACCURATE"]), ("CUSTOM", "Custom", "Own values")])
+               ("ACCURATE", "Accurate", HINTS["ACCURATE"]),
+               ("CUSTOM", "Custom", "Your own samples, trials and selection")])
     samples: IntProperty(name="BRDF Samples", default=_BALANCED["samples"], min=1, soft_max=200,
+                         update=_preset_value_changed,
                          description="Condition-optimal BRDF samples per trial (paper: 6)")
     trials: IntProperty(name="Trials", default=_BALANCED["trials"], min=1, soft_max=128,
+                        update=_preset_value_changed,
                         description="Random-subset reconstructions; KL picks one")
     subset_fraction: FloatProperty(name="Subset Fraction",
                                    default=_BALANCED["subset_fraction"], min=0.01, max=1.0,
+                                   update=_preset_value_changed,
                                    description="Share of reliable pixels each trial draws")
     min_reliable_samples: IntProperty(name="Min Reliable Samples", default=20, min=1,
                                       description="Regions with fewer are skipped")
 
     # KL selection
     kl_path: EnumProperty(
-        name="Selection", default=_BALANCED["kl_path"],
+        name="Selection", default=_BALANCED["kl_path"], update=_preset_value_changed,
+        description="How the trials' tables are compared with the photos to choose one",
         items=[("FAST", "Fast (numpy)", "Shade each candidate table on the G-buffers"),
                ("CYCLES", "Accurate (Cycles)", "Render each candidate's baked material")])
-    kl_bins: IntProperty(name="KL Bins", default=64, min=4, max=4096)
-    kl_samples: IntProperty(name="Cycles Samples", default=_BALANCED["kl_samples"], min=1, max=4096,
+    kl_bins: IntProperty(name="KL Bins", default=64, min=4, max=4096,
+                         description="Bins of the log-intensity histograms that the KL "
+                         "divergence compares")
+    kl_samples: IntProperty(name="Cycles Samples", default=_BALANCED["kl_samples"], min=1,
+                            max=4096, update=_preset_value_changed,
                             description="Cycles samples per KL render")
     seed: IntProperty(name="Seed", default=0, min=0,
                       description="Seed of every random choice (sampling trials); "
@@ -234,11 +307,20 @@ class BRDFSettings(PropertyGroup):
                             "folder that no earlier run wrote (tables, pictures, report)")
 
     # run state (not saved as settings)
-    running: BoolProperty(name="Running", default=False, options={"SKIP_SAVE"})
+    settings_version: IntProperty(
+        name="Settings Version", default=0, min=0, options={"HIDDEN"},
+        description="Which version of these settings the file was saved with "
+        "(brdf_addon/versioning.py; 0 = 0.1.0, angles in degrees)")
+    running: BoolProperty(name="Running", default=False, options={"SKIP_SAVE"},
+                          description="A reconstruction is running")
     progress: FloatProperty(name="Progress", default=0.0, min=0.0, max=1.0,
-                            subtype="FACTOR", options={"SKIP_SAVE"})
-    status: StringProperty(name="Status", default="")
-    results: CollectionProperty(type=BRDFRegionResult)
+                            subtype="FACTOR", options={"SKIP_SAVE"},
+                            description="Share of the running reconstruction done")
+    status: StringProperty(name="Status", default="",
+                           description="What the running reconstruction is doing (on "
+                           "its progress bar)")
+    results: CollectionProperty(type=BRDFRegionResult, name="Results",
+                                description="What the last reconstruction gave per region")
     capture_notes: StringProperty(name="Capture Notes", default="[]",
                                   description="What the last run did to the photos (JSON "
                                   "list of lines): scaling, undistortion, exposure, "
@@ -247,8 +329,10 @@ class BRDFSettings(PropertyGroup):
 
 CLASSES = (BRDFPhoto, BRDFRegionResult, BRDFSettings)
 
+
 def pipeline_settings(settings):
-    """``core.method.pipeline.PipelineSettings`` from ``scene.brdf`` (degrees -> radians)."""
+    """``core.method.pipeline.PipelineSettings`` from ``scene.brdf`` (angles are radians
+    in both)."""
     from ..core.method import observations, pipeline, reliable
 
     return pipeline.PipelineSettings(
@@ -258,7 +342,7 @@ def pipeline_settings(settings):
             use_monotonicity=settings.use_monotonicity,
             monotonicity_tolerance=settings.monotonicity_tolerance,
             use_brightest=settings.use_brightest,
-            peak_max_angle=math.radians(settings.peak_max_angle)),
+            peak_max_angle=settings.peak_max_angle),
         observation=observations.ObservationSettings(
             min_cosine=settings.min_cosine,
             # the clip level is applied to the file's values before exposure scaling,
@@ -271,8 +355,16 @@ def pipeline_settings(settings):
 
 
 def settings_dict(settings) -> dict:
-    """The job-file ``[settings]`` of ``scene.brdf`` (for reports and provenance)."""
-    return {name: getattr(settings, name) for name in SETTING_NAMES}
+    """The job-file ``[settings]`` of ``scene.brdf`` (for reports and provenance): as a
+    job file writes them, so angles in degrees (rounded to 1e-4 degree, finer than
+    their float32 storage in radians at 180 degrees)."""
+    out = {}
+    for name in SETTING_NAMES:
+        value = getattr(settings, name)
+        if settings.bl_rna.properties[name].subtype == "ANGLE":
+            value = round(math.degrees(value), 4)
+        out[name] = value
+    return out
 
 
 def attach() -> None:

@@ -15,11 +15,40 @@ drive a :class:`Run`. Nothing of the user's is modified.
 from __future__ import annotations
 
 import time
+import traceback
 
 import numpy as np
 
 from ..core.method import pipeline
 from . import gathering, outputs, photo_input, prefs, props
+
+# The basis build's progress line on the terminal and the status bar: at most this
+# often (it is called after every table, a few times a second).
+BASIS_MESSAGE_INTERVAL_S = 1.0
+
+
+# The operator's report when Ctrl+C interrupts a background run (Blender would turn
+# the KeyboardInterrupt into a traceback); the batch entry turns it back into exit 130.
+INTERRUPTED = "Interrupted (Ctrl+C); nothing was written half-way"
+
+
+class RunFailed(Exception):
+    """The run stopped on something that is not the user's input (out of memory, a
+    bug): one sentence for the user; ``details`` holds the traceback for the console."""
+
+    def __init__(self, message: str, details: str = ""):
+        super().__init__(message)
+        self.details = details
+
+
+def failure_sentence(error: BaseException) -> str:
+    """One sentence for an unexpected exception in the run."""
+    if isinstance(error, MemoryError):
+        return ("the reconstruction ran out of memory; close other programs, or use "
+                "fewer or smaller photos")
+    text = str(error).strip().splitlines()[0] if str(error).strip() else ""
+    what = f"{type(error).__name__}: {text}" if text else type(error).__name__
+    return f"the reconstruction failed unexpectedly ({what}); nothing was written"
 
 
 class Run:
@@ -71,15 +100,31 @@ class Run:
             self.on_progress(self.progress, text)
 
     def cancel(self) -> None:
+        """Ask the run to stop: at the next step, or (in the worker) at the next check
+        of the basis build or the pipeline; :meth:`step` raises ``pipeline.Cancelled``
+        once the worker has stopped."""
         self._cancel = True
 
     def _cancelled(self) -> bool:
         return self._cancel
 
+    def _basis_progress(self):
+        """``progress(fraction, message)`` for the basis build: the message at most
+        every :data:`BASIS_MESSAGE_INTERVAL_S`, and always its last one."""
+        last = [-np.inf]
+
+        def progress(fraction, message):
+            now = time.perf_counter()
+            if fraction >= 1.0 or now - last[0] >= BASIS_MESSAGE_INTERVAL_S:
+                last[0] = now
+                self.message = f"{message} ({fraction:.0%}; first run only)"
+        return progress
+
     def _science(self) -> None:
         try:
             t0 = time.perf_counter()
-            basis = prefs.load_basis()
+            basis = prefs.load_basis(progress=self._basis_progress(),
+                                     cancelled=self._cancelled)
             self._timings["basis_load"] = time.perf_counter() - t0
 
             def progress(f, msg):
@@ -101,11 +146,19 @@ class Run:
             self._outcome = ("cancelled", error)
         except (ValueError, OSError) as error:
             self._outcome = ("error", error)
+        except Exception as error:  # noqa: BLE001 - any other fault ends the run cleanly
+            self._outcome = ("failed", RunFailed(failure_sentence(error),
+                                                 traceback.format_exc()))
 
     def step(self) -> bool:
         """Advance; True when finished. Raises ValueError (one sentence) on a user
-        error and ``pipeline.Cancelled`` after :meth:`cancel`."""
+        error, :class:`RunFailed` on any other fault of the science, and
+        ``pipeline.Cancelled`` after :meth:`cancel` (once the worker thread, if
+        any, has stopped, so nothing runs on behind the user's back)."""
         if self._cancel:
+            if self._thread is not None and self._thread.is_alive():
+                self.message = "cancelling"
+                return False
             raise pipeline.Cancelled("cancelled by the user")
         if self._photo < self._n_photos:  # G-buffers: one photo per step (bpy)
             t0 = time.perf_counter()
@@ -138,6 +191,8 @@ class Run:
             raise value
         if status == "error":
             raise ValueError(str(value)) from value
+        if status == "failed":
+            raise value
         if self.scene.brdf.kl_path == "CYCLES" and self._cycles_step(value):
             return False
         self.progress, self.message = 0.9, "writing results"

@@ -1,9 +1,10 @@
 """Import cameras from a COLMAP model: ``brdf.import_colmap``.
 
-What each camera carries is described in ``brdf_addon/colmap_import.py``.
+What each camera carries is described in ``brdf_addon/colmap_import.py``;
+importing a model again updates the cameras of its images (one camera per
+image). The report names the model folder by its last two parts: "Imported 6
+cameras from sparse/0", "Updated 6 cameras from sparse/0".
 """
-
-import os
 
 import bpy
 from bpy.props import BoolProperty, StringProperty
@@ -15,6 +16,9 @@ class BRDF_OT_import_colmap(bpy.types.Operator):
     """Import cameras (and optionally sparse points) from a COLMAP model folder"""
 
     bl_idname = "brdf.import_colmap"
+    # one line: a wrapped docstring would carry its line break into the tooltip
+    bl_description = ("Import cameras (and optionally sparse points) from a COLMAP model "
+                      "folder; cameras already imported for the same images are updated")
     bl_label = "Import COLMAP Cameras"
     bl_options = {"REGISTER", "UNDO"}
 
@@ -36,21 +40,23 @@ class BRDF_OT_import_colmap(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            cameras = colmap_import.import_cameras(context, self.directory,
-                                                   point_cloud=self.point_cloud)
+            done = colmap_import.import_model(context, self.directory,
+                                              point_cloud=self.point_cloud)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
+        cameras = done.cameras
         distorted = sum(bool(obj["brdf_colmap_distorted"]) for obj in cameras)
         if distorted:
+            summary = done.summary()
             self.report(
                 {"WARNING"},
                 f"{distorted} of {len(cameras)} cameras have lens distortion; their lit "
-                "photos will be undistorted automatically before use",
+                f"photos will be undistorted automatically before use "
+                f"({summary[0].lower()}{summary[1:]})",
             )
         else:
-            folder = os.path.basename(os.path.normpath(bpy.path.abspath(self.directory)))
-            self.report({"INFO"}, f"Imported {len(cameras)} cameras from {folder}")
+            self.report({"INFO"}, done.summary())
         return {"FINISHED"}
 
 

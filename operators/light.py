@@ -73,10 +73,12 @@ class BRDF_OT_light_from_probe(_PhotoOperator):
 
 
 class BRDF_OT_light_from_time(_PhotoOperator):
-    """Set the active photo's light from date, time and place; creates or updates
-    the Sun object "BRDF Sun" to show it"""
+    """Set the active photo's light from date, time and place"""
 
     bl_idname = "brdf.light_from_time"
+    # one line: a wrapped docstring would carry its line break into the tooltip
+    bl_description = ("Set the active photo's light from date, time and place; creates or "
+                      "updates the Sun object \"BRDF Sun\" to show it")
     bl_label = "Light from Date, Time, Place"
 
     def execute(self, context):
@@ -94,10 +96,12 @@ class BRDF_OT_light_from_time(_PhotoOperator):
 
 
 class BRDF_OT_up_from_cameras(bpy.types.Operator):
-    """Set the scene's up (the sky, for the sun's direction) from the cameras: the
-    normal of the plane of their centres, or their mean up axis"""
+    """Set the scene's up (the sky, for the sun's direction) from the cameras"""
 
     bl_idname = "brdf.up_from_cameras"
+    bl_description = ("Set the scene's up (the sky, for the sun's direction) from the "
+                      "cameras: the normal of the plane of their centers, or their mean up "
+                      "axis")
     bl_label = "Up from Cameras"
     bl_options = {"REGISTER", "UNDO"}
 

@@ -19,8 +19,9 @@ class BRDF_OT_add_photos(bpy.types.Operator):
     bl_label = "Add Lit Photos"
     bl_options = {"REGISTER", "UNDO"}
 
-    directory: StringProperty(subtype="DIR_PATH")
-    files: CollectionProperty(type=OperatorFileListElement)
+    directory: StringProperty(subtype="DIR_PATH", description="Folder of the chosen photos")
+    files: CollectionProperty(type=OperatorFileListElement,
+                              description="The chosen photo files")
     filter_image: bpy.props.BoolProperty(default=True, options={"HIDDEN"})
 
     @classmethod

@@ -7,10 +7,16 @@ science), with a progress bar and Esc to cancel, which leaves the scene as it
 was. Background mode (batch, tests): the same steps, synchronously.
 """
 
+import os
+import sys
+import traceback
+
 import bpy
 
 from ..brdf_addon import gathering, runner
 from ..core.method import pipeline
+
+DEBUG_VARIABLE = "BRDF_RECONSTRUCT_DEBUG"  # set to 1: a failure's traceback on stderr
 
 
 def _ready(context) -> bool:
@@ -40,6 +46,12 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
         except (ValueError, OSError, pipeline.Cancelled) as error:
             self.report({"ERROR"}, _sentence(error))
             return {"CANCELLED"}
+        except Exception as error:  # noqa: BLE001 - a fault, not the user's input
+            self.report({"ERROR"}, _failure(error))
+            return {"CANCELLED"}
+        except KeyboardInterrupt:  # Ctrl+C in a background run: the batch exits 130
+            self.report({"ERROR"}, runner.INTERRUPTED)
+            return {"CANCELLED"}
         self._report_done(report)
         return {"FINISHED"}
 
@@ -48,7 +60,7 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
             return self.execute(context)
         try:
             self._run = runner.Run(context.scene, threaded=True)
-        except ValueError as error:
+        except (ValueError, OSError) as error:
             self.report({"ERROR"}, _sentence(error))
             return {"CANCELLED"}
         settings = context.scene.brdf
@@ -76,9 +88,17 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
             return {"CANCELLED"}
         except (ValueError, OSError) as error:
             self._finish(context)
+            settings.status = self._status
             self.report({"ERROR"}, _sentence(error))
             return {"CANCELLED"}
+        except Exception as error:  # noqa: BLE001 - any fault still ends the modal run
+            self._finish(context)
+            settings.status = self._status
+            self.report({"ERROR"}, _failure(error))
+            return {"CANCELLED"}
         settings.progress = self._run.progress
+        if not done:  # the panel's progress bar reads it (the basis build's line too)
+            settings.status = self._run.message
         context.window_manager.progress_update(self._run.progress)
         context.workspace.status_text_set(f"BRDF: {self._run.message} (Esc to cancel)")
         for area in context.screen.areas:
@@ -111,6 +131,18 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
             self.report({"WARNING"}, f"Skipped {r['label']}: {r['reason']}")
         self.report({"INFO"}, f"Reconstructed {len(ok)} region(s); "
                     f"{len(skipped)} skipped")
+
+
+def _failure(error: Exception) -> str:
+    """One report line for a fault that is not the user's input; its traceback goes
+    to stderr when ``$BRDF_RECONSTRUCT_DEBUG`` is set (the batch entry prints only
+    the line otherwise; the panel's console gets it always)."""
+    if not isinstance(error, runner.RunFailed):
+        error = runner.RunFailed(runner.failure_sentence(error), traceback.format_exc())
+    if os.environ.get(DEBUG_VARIABLE) or not bpy.app.background:
+        print(error.details, file=sys.stderr, flush=True)
+    hint = "" if os.environ.get(DEBUG_VARIABLE) else f" (set {DEBUG_VARIABLE}=1 for details)"
+    return _sentence(error) + hint
 
 
 def _sentence(error) -> str:

@@ -12,10 +12,15 @@ Steps:
    are never bundled. A pinned version without a wheel for a platform/Python is
    reported (never replaced by another version) and that Python is left out of
    that platform's zip.
-2. Copy the source tree (minus the manifest's ``[build] paths_exclude_pattern``)
-   to a temporary staging folder, put the wheels in ``wheels/`` there and write
-   ``wheels = [...]`` and ``platforms = [...]`` into the STAGED manifest; the
-   committed manifest stays wheel-free for development.
+2. Copy what an installed extension needs, and only that (:data:`SHIPPED`: the
+   root ``__init__.py``, the manifest, ``brdf_addon/``, ``core/``, ``operators/``,
+   a license file if the repository has one; never tests, benches, ``testkit/``,
+   docs, scripts, the developers' README, ``requirements*.txt``, Makefile or
+   ``pyproject.toml``), minus the manifest's ``[build] paths_exclude_pattern``
+   inside those (caches, dot-files), to a temporary staging folder; put the
+   wheels in ``wheels/`` there and write ``wheels = [...]`` and
+   ``platforms = [...]`` into the STAGED manifest; the committed manifest stays
+   wheel-free for development.
 3. Run Blender's own ``blender_ext.py build --split-platforms`` (from the pip
    ``bpy`` wheel, or ``--blender-ext``) into ``dist/``, then
    ``blender_ext.py validate`` on every zip. Blender names them
@@ -42,6 +47,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 MANIFEST = "blender_manifest.toml"
 STAGE_MARKER = ".brdf_extension_stage"
+
+# What the zip holds from the source tree (an allow-list: a new file at the root is
+# left out until it is added here), and license files if there are any.
+SHIPPED = ("__init__.py", MANIFEST, "brdf_addon", "core", "operators")
+SHIPPED_GLOBS = ("LICENSE*", "COPYING*")
 
 # Packages bundled as wheels; their versions come from requirements.txt.
 BUNDLED = ("scipy", "pycolmap")
@@ -147,7 +157,19 @@ def _exclude_matcher(patterns: list[str]):
     return excluded
 
 
+def shipped_paths(src: Path) -> list[Path]:
+    """The files and folders of ``src`` that go into the zip (:data:`SHIPPED`, then
+    any license file); SystemExit when one of :data:`SHIPPED` is missing."""
+    missing = [name for name in SHIPPED if not (src / name).exists()]
+    if missing:
+        raise SystemExit(f"error: {src} has no {', '.join(missing)}: not an extension source")
+    licenses = sorted({p for pattern in SHIPPED_GLOBS for p in src.glob(pattern) if p.is_file()})
+    return [src / name for name in SHIPPED] + licenses
+
+
 def stage_source(src: Path, dst: Path, patterns: list[str]) -> None:
+    """Copy :func:`shipped_paths` of ``src`` into the new folder ``dst``, leaving out
+    what ``patterns`` (the manifest's ``paths_exclude_pattern``) match inside them."""
     excluded = _exclude_matcher(patterns)
 
     def ignore(dirpath: str, names: list[str]) -> list[str]:
@@ -155,7 +177,12 @@ def stage_source(src: Path, dst: Path, patterns: list[str]) -> None:
         prefix = "" if rel_dir == "." else rel_dir + "/"
         return [n for n in names if excluded(prefix + n, os.path.isdir(os.path.join(dirpath, n)))]
 
-    shutil.copytree(src, dst, ignore=ignore, symlinks=False)
+    dst.mkdir(parents=True)
+    for path in shipped_paths(src):
+        if path.is_dir():
+            shutil.copytree(path, dst / path.name, ignore=ignore, symlinks=False)
+        else:
+            shutil.copy2(path, dst / path.name)
 
 
 def _toml_str_list(values: list[str]) -> str:

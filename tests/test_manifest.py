@@ -1,8 +1,10 @@
 """blender_manifest.toml passes Blender's own extension validator and builds cleanly."""
 
+import re
 import subprocess
 import sys
 import tomllib
+import urllib.parse
 import zipfile
 from pathlib import Path
 
@@ -49,6 +51,17 @@ def test_manifest_identity():
     assert manifest["schema_version"] == "1.0.0"
 
 
+def test_maintainer_and_website_are_well_formed():
+    """The extension's page names who answers for it and where it lives: maintainer
+    as "Name <e-mail>" (Blender's convention), website an http(s) URL with a host."""
+    manifest = tomllib.loads(MANIFEST.read_text(encoding="utf-8"))
+    match = re.fullmatch(r"(?P<name>\S.*\S) <(?P<email>[^<>@\s]+@[^<>@\s]+\.[^<>@\s]+)>",
+                         manifest["maintainer"])
+    assert match, manifest["maintainer"]
+    url = urllib.parse.urlsplit(manifest["website"])
+    assert url.scheme in ("http", "https") and url.netloc, manifest["website"]
+
+
 def test_validator_accepts_repo():
     result = _run("validate", "--valid-tags", str(_valid_tags()), str(REPO))
     assert result.returncode == 0, result.stdout + result.stderr
@@ -77,3 +90,7 @@ def test_built_package_is_valid_and_lean(tmp_path):
     leaked = [n for n in names if any(n.startswith(e) or f"/{e}" in n for e in excluded)]
     assert not leaked, leaked
     assert not [n for n in names if ".egg-info/" in n]
+    # the manifest's own patterns keep the developers' root files out too
+    root_files = {"README.md", "Makefile", "pyproject.toml", "requirements.txt",
+                  "requirements-bench.txt"}
+    assert not root_files & set(names), sorted(root_files & set(names))

@@ -29,6 +29,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from ..progress import CancelCheck, Progress, check, report
 from . import merl
 
 EPS = 1e-3  # Nielsen's eps in the log-relative mapping
@@ -154,33 +155,57 @@ def build(
     tables: Iterable[np.ndarray],
     n_components: int = N_COMPONENTS,
     fingerprint: str = "",
-    progress=None,
+    progress: Progress | None = None,
+    cancelled: CancelCheck | None = None,
+    n_tables: int | None = None,
 ) -> Basis:
     """Build a basis from a stream of tables.
 
     tables: iterable of (3, 90, 90, 180) arrays in 1/sr (NaN = unmeasured); each
     contributes three columns. Only cells above the horizon at their centre and
     measured in every table are kept. n_components: k, capped by the number of
-    columns. progress: optional callable(done_tables) for long builds.
+    columns. progress: optional ``progress(fraction, message)`` (``core.progress``),
+    called after every table and every block of cells, so at least once a second
+    on the built-in database; n_tables: the stream's length, for its fractions.
+    cancelled: optional callable checked as often; True raises
+    ``core.progress.Cancelled`` (nothing is kept).
     Memory: one float32 value per (column, cell): 0.44 GB per 100 channels.
     """
     t0 = time.perf_counter()
+
+    def stage(fraction: float, message: str) -> None:
+        check(cancelled)
+        report(progress, fraction, message)
+
+    # reading or generating the tables is most of the time: 80 %, the passes 20 %
+    of_tables = f"/{n_tables}" if n_tables else ""
     geo = np.flatnonzero(merl.valid_cells())
+    n_blocks = -(-len(geo) // _BLOCK)  # at most; the kept cells are fewer
     cos = cosine_map()[geo].astype(np.float32)
+    # (n_cols, n_geo) float32, cosine-weighted: filled in place when the stream's
+    # length is known (no second copy at the end), else gathered and joined
+    X = np.empty((3 * n_tables, len(geo)), dtype=np.float32) if n_tables else None
     columns: list[np.ndarray] = []
     keep = np.ones(len(geo), dtype=bool)
+    n_done = 0
     for i, table in enumerate(tables):
         table = np.asarray(table)
         if table.shape != (3, *merl.SHAPE):
             raise ValueError(f"training table {i} has shape {table.shape}, not (3, 90, 90, 180)")
+        if X is not None and i >= n_tables:
+            raise ValueError(f"more training tables than the {n_tables} announced")
         rho = table.reshape(3, -1)[:, geo]
         keep &= np.all(np.isfinite(rho) & (rho >= 0), axis=0)
-        columns.append((rho * cos).astype(np.float32))
-        if progress is not None:
-            progress(i + 1)
-    if not columns:
+        if X is not None:
+            np.multiply(rho, cos, out=X[3 * i : 3 * i + 3], casting="same_kind")
+        else:
+            columns.append((rho * cos).astype(np.float32))
+        n_done = i + 1
+        stage(0.8 * (n_done / n_tables) if n_tables else 0.0,
+              f"building the BRDF basis (once): table {n_done}{of_tables}")
+    if n_done == 0:
         raise ValueError("no training tables given")
-    X = np.concatenate(columns, axis=0)  # (n_cols, n_geo) float32, cosine-weighted
+    X = X[: 3 * n_done] if X is not None else np.concatenate(columns, axis=0)
     del columns
     n_cols = X.shape[0]
     rows = np.flatnonzero(keep)
@@ -192,7 +217,9 @@ def build(
     gram = np.zeros((n_cols, n_cols))
     x_lo, x_hi = np.inf, -np.inf
     # Pass 1, per block of cells: median, mapping, mean, centring (in place), Gram.
-    for start in range(0, len(rows), _BLOCK):
+    for b, start in enumerate(range(0, len(rows), _BLOCK)):
+        stage(0.8 + 0.1 * b / n_blocks, "building the BRDF basis (once): principal "
+              f"components, block {b + 1}/{n_blocks}")
         r = rows[start : start + _BLOCK]
         block = X[:, r].astype(np.float64)
         m = np.median(block, axis=0)
@@ -212,10 +239,13 @@ def build(
     k = int(min(n_components, n_cols))
     Vk = V[:, :k].astype(np.float32)
     Q = np.empty((len(rows), k), dtype=np.float32)
-    for start in range(0, len(rows), _BLOCK):
+    for b, start in enumerate(range(0, len(rows), _BLOCK)):
+        stage(0.9 + 0.1 * b / n_blocks, "building the BRDF basis (once): basis vectors, "
+              f"block {b + 1}/{n_blocks}")
         r = rows[start : start + _BLOCK]
         Q[start : start + len(r)] = X[:, r].T @ Vk
     del X
+    stage(1.0, "building the BRDF basis (once): done")
     total = float(eigval.sum())
     info = {
         "n_columns": int(n_cols),
@@ -311,9 +341,11 @@ def _fingerprint(data_key: str, n_components: int) -> str:
 def load_default(
     cache_dir: str | os.PathLike | None = None,
     n_components: int = N_COMPONENTS,
-    progress=None,
+    progress: Progress | None = None,
+    cancelled: CancelCheck | None = None,
 ) -> Basis:
-    """The built-in basis from the analytic database, built and cached on first use."""
+    """The built-in basis from the analytic database, built and cached on first use.
+    progress, cancelled: as in :func:`build` (used only when it builds)."""
     from . import database
 
     specs = database.training_specs()
@@ -321,7 +353,8 @@ def load_default(
     return _cached(
         fp,
         lambda: build(
-            (database.make_table(s) for s in specs), n_components, fp, progress=progress
+            (database.make_table(s) for s in specs), n_components, fp, progress=progress,
+            cancelled=cancelled, n_tables=len(specs),
         ),
         cache_dir,
     )
@@ -342,10 +375,12 @@ def load_merl_folder(
     folder: str | os.PathLike,
     cache_dir: str | os.PathLike | None = None,
     n_components: int = N_COMPONENTS,
-    progress=None,
+    progress: Progress | None = None,
+    cancelled: CancelCheck | None = None,
 ) -> Basis:
     """A basis from the user's MERL ``.binary`` files, cached under a hash of their
-    names and contents (about 1 s per 30 files to hash)."""
+    names and contents (about 1 s per 30 files to hash). progress, cancelled: as in
+    :func:`build` (used only when it builds)."""
     files = merl_folder_files(folder)
     h = hashlib.blake2b(digest_size=20)
     for f in files:
@@ -355,5 +390,8 @@ def load_merl_folder(
                 h.update(chunk)
     fp = _fingerprint("merl:" + h.hexdigest(), n_components)
     return _cached(
-        fp, lambda: build((merl.read(f) for f in files), n_components, fp, progress), cache_dir
+        fp,
+        lambda: build((merl.read(f) for f in files), n_components, fp, progress=progress,
+                      cancelled=cancelled, n_tables=len(files)),
+        cache_dir,
     )

@@ -11,7 +11,10 @@ Two entries read a photo:
   entry (float = linear, any integer format = sRGB, or forced by ``linear``).
 
 ``read_metadata(path)`` gives the metadata alone (no pixels), ``read_mask``
-a (H, W) bool mask, ``check_finite`` rejects NaN/Inf inside a mask.
+a (H, W) bool mask, ``check_finite`` rejects NaN/Inf inside a mask. A value
+beyond a half EXR's range (65504) is stored as Inf, so it is refused there;
+finite values no camera records (a 1e30 in a float EXR), black photos and
+photos at odds with their light are ``core.capture.photo_checks``'.
 
 The AUTO encoding rules of ``read_photo_file`` (the product spec):
 

@@ -27,11 +27,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..brdf.basis import Basis
+from ..progress import Cancelled as Cancelled  # re-exported: what run() raises
+from ..progress import check
 from . import observations, reliable, selection
-
-
-class Cancelled(Exception):
-    """Raised by :func:`run` when its ``cancelled`` callable returns True."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -150,18 +148,13 @@ class PipelineResult:
                 "photos": self.photo_counts, "timings_s": self.timings}
 
 
-def _check(cancelled: Callable[[], bool] | None) -> None:
-    if cancelled is not None and cancelled():
-        raise Cancelled("cancelled by the user")
-
-
 def observe_photos(inputs: Sequence[PhotoInput], settings: PipelineSettings,
                    progress=None, cancelled=None) -> tuple[observations.Samples, list]:
     """Samples of every photo, concatenated (view index = position in ``inputs``),
     and per photo a dict of the samples kept and the pixels removed per reason."""
     parts = []
     for i, p in enumerate(inputs):
-        _check(cancelled)
+        check(cancelled)
         if progress:
             progress(i / max(len(inputs), 1), f"observing photo {i + 1}/{len(inputs)}")
         parts.append(observations.observe(
@@ -258,13 +251,13 @@ def run_region(
         return result
     trials = []
     for t, child in enumerate(rng.spawn(settings.n_trials)):
-        _check(cancelled)
+        check(cancelled)
         if progress:
             progress(t / settings.n_trials, f"region {region}: trial {t + 1}/{settings.n_trials}")
         trials += reliable.trial_candidates(basis, cand, settings.n_samples, 1, child,
                                               settings.subset_fraction, report.peaks,
                                               timings=result.timings)
-    _check(cancelled)
+    check(cancelled)
     if progress:
         progress(1.0, f"region {region}: KL selection over {len(trials)} trials")
     t0 = time.perf_counter()

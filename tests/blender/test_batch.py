@@ -122,12 +122,95 @@ def test_same_seed_same_table(job_dir):
     # a light that cannot be a direction, said as such
     (('light = "Sun"', "light = [0.0, nan, 1.0]"), "must be finite and not all zero"),
     (('light = "Sun"', 'light = ["a", "b", "c"]'), "light must be three numbers [x, y, z]"),
+    # a camera that is not a name (a traceback from bpy before), an empty one
+    ((f'camera = "{BS.IMAGE_NAME}"', "camera = 3"),
+     "photo 1: camera must be a camera's name or its image name, got 3"),
+    ((f'camera = "{BS.IMAGE_NAME}"', 'camera = ""'),
+     "photo 1: camera must be a camera's name or its image name, got ''"),
+    # an exposure scale that cannot be right
+    ((f"irradiance = {math.pi}", f"irradiance = {math.pi}\nexposure = inf"),
+     "photo 1: exposure must be a positive finite number, got inf"),
 ])
 def test_bad_job_exits_1_with_one_line(job_dir, change, message):
     result = _run(job_dir, GOOD.replace(*change), "bad.toml")
     assert result.returncode == 1, result.stderr
     errors = [ln for ln in result.stderr.splitlines() if ln.startswith("error:")]
     assert len(errors) == 1 and message in errors[0], result.stderr
+
+
+PLY_HEADER = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+              b"property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+              b"end_header\n")
+
+
+@pytest.mark.parametrize("name, data, message", [
+    ("notes.blend", b"notes about the scene, not a scene\n",
+     "blend notes.blend is not a Blender file"),
+    ("empty.blend", b"", "blend empty.blend is empty (0 bytes)"),
+    # Blender's header, then nothing Blender can read: open_mainfile's error, one line
+    ("damaged.blend", b"BLENDER-v300" + b"junk" * 100,
+     "blend damaged.blend could not be opened"),
+    ("empty.ply", b"", "mesh empty.ply is empty (0 bytes)"),
+    ("notes.ply", b"notes about the scan, not a scan\n",
+     'mesh notes.ply is not a PLY file (it does not start with "ply")'),
+    ("points.ply", PLY_HEADER.replace(b"face 1", b"face 0") + b"0 0 0\n1 0 0\n0 1 0\n",
+     "mesh points.ply has no faces"),
+    # a good header over rows that are not numbers: the importer's error, one line
+    ("garbled.ply", PLY_HEADER + b"a b c\nd e f\n", "mesh garbled.ply could not be imported"),
+])
+def test_a_bad_blend_or_mesh_file_exits_1_with_one_line(job_dir, name, data, message):
+    """Issue 13: these used to end in a traceback. The file is left as it was."""
+    (job_dir / name).write_bytes(data)
+    scene = f'blend = "{name}"\nobject = "Scan"' if name.endswith(".blend") else \
+        f'mesh = "{name}"'
+    result = _run(job_dir, GOOD.replace('blend = "scene.blend"\nobject = "Scan"', scene),
+                  "bad_file.toml")
+    assert result.returncode == 1, result.stderr
+    errors = [ln for ln in result.stderr.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 1 and message in errors[0], result.stderr
+    assert "Traceback" not in result.stderr
+    assert (job_dir / name).read_bytes() == data
+
+
+def test_a_faceless_scan_object_exits_1_with_one_line(job_dir):
+    """A mesh object without faces in the job's .blend: the run's own scene check
+    (gathering.check_scene) refuses it before any work, one line."""
+    bpy.ops.wm.open_mainfile(filepath=str(job_dir / "scene.blend"))
+    mesh = bpy.data.meshes.new("points")
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [])
+    bpy.context.scene.collection.objects.link(bpy.data.objects.new("Points", mesh))
+    bpy.ops.wm.save_as_mainfile(filepath=str(job_dir / "points.blend"), copy=True)
+    job = GOOD.replace('blend = "scene.blend"\nobject = "Scan"',
+                       'blend = "points.blend"\nobject = "Points"')
+    result = _run(job_dir, job.replace('out = "out"', 'out = "points_out"'), "points.toml")
+    assert result.returncode == 1, result.stderr
+    errors = [ln for ln in result.stderr.splitlines() if ln.startswith("error:")]
+    # the operator's report starts with a capital, as Blender's reports do
+    assert len(errors) == 1 and "The scan Points is a mesh without faces" in errors[0], \
+        result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_an_installed_but_disabled_extension_is_one_sentence():
+    """batch.py run by Blender from an extension repository's folder while that
+    extension is not enabled: one sentence saying how to enable it, instead of
+    importing a second, unregistered copy (the enabled case runs in
+    tests/test_extension.py)."""
+    from pathlib import Path
+
+    from brdf_reconstruct.brdf_addon import batch
+
+    repo = next(r for r in bpy.context.preferences.extensions.repos
+                if r.module == "user_default")
+    name = f"bl_ext.user_default.{batch.PACKAGE_ID}"
+    assert name not in bpy.context.preferences.addons  # not installed in this process
+    with pytest.raises(ValueError) as error:
+        batch._enabled_extension(Path(repo.directory).resolve() / batch.PACKAGE_ID)
+    text = str(error.value)
+    assert text.startswith(f"the extension {name} is installed but not enabled")
+    assert f"--addons {name}" in text and "\n" not in text
+    # a folder outside every repository (a checkout): no extension, no error
+    assert batch._enabled_extension(Path(__file__).resolve().parents[2]) is None
 
 
 def test_a_users_table_in_out_is_kept_unless_overwrite(job_dir):

@@ -165,21 +165,127 @@ def _snapshot(objects):
     }
 
 
-def test_importing_twice_leaves_the_first_import_alone(models):
+def _moved_views():
+    """The same image names as `_views`, every camera elsewhere and with another lens:
+    a re-run of the reconstruction."""
+    return [
+        (name, model, [p * 1.05 for p in params], w, h,
+         *camconv.look_at(np.array(centre) * 1.1 + [0.1, -0.2, 0.05], [0.05, 0, 0]))
+        for (name, model, params, w, h, _R, _t), centre in zip(
+            _views(), [[4, 0.5, 1], [0.3, 4, 1.5], [-3, -3, 0.5], [-4, 1, -1], [0.5, -0.5, 4.5]],
+            strict=True)
+    ]
+
+
+def _write_model(folder, views):
+    rng = np.random.default_rng(0)
+    xyz = rng.uniform(-1, 1, (200, 3))
+    rgb = rng.integers(0, 256, (200, 3), dtype=np.uint8)
+    folder.mkdir(parents=True)
+    synthetic.synthetic_reconstruction(views, xyz, rgb).write(str(folder))
+    return folder
+
+
+def _import_reporting(folder, point_cloud=False):
+    fake = _FakeOperator(directory=str(folder), point_cloud=point_cloud, reports=[])
+    assert OP.execute(fake, bpy.context) == {"FINISHED"}
+    ((kind, message),) = fake.reports
+    return kind, message
+
+
+def _expected_matrix_world(image):
+    """Blender's camera-to-world for a COLMAP image, from pycolmap's pose alone: the
+    camera sits at C = -R^T t; Blender's camera x, y, z are COLMAP's x, -y, -z."""
+    pose = image.cam_from_world()
+    R, t = pose.rotation.matrix(), pose.translation
+    M = np.eye(4)
+    M[:3, :3] = R.T @ np.diag([1.0, -1.0, -1.0])
+    M[:3, 3] = -R.T @ t
+    return M
+
+
+def _camera_objects():
+    return [o for o in bpy.data.objects if o.type == "CAMERA"]
+
+
+def test_importing_twice_updates_the_cameras_instead_of_copying_them(tmp_path):
+    """One camera per image: the second import (a re-run with moved cameras) updates the
+    cameras of the first, names and collection kept, poses and lenses the new model's;
+    the scan, the scene camera and the render size are left alone."""
+    first_model = _write_model(tmp_path / "first" / "sparse" / "0", _views())
+    second_model = _write_model(tmp_path / "second" / "sparse" / "0", _moved_views())
     scan = bpy.data.objects.new("Scan", None)
     bpy.context.scene.collection.objects.link(scan)
-    bpy.ops.brdf.import_colmap(directory=str(models["bin"]))
+    scan_before = _snapshot([scan])
+    assert _import_reporting(first_model) == ({"INFO"}, "Imported 5 cameras from sparse/0")
     first = _imported_cameras()
-    before = _snapshot(first + [scan])
+    names = sorted(o.name for o in first)
     render_before = (bpy.context.scene.render.resolution_x, bpy.context.scene.camera.name)
 
-    bpy.ops.brdf.import_colmap(directory=str(models["txt"]), point_cloud=True)
-    assert _snapshot(first + [scan]) == before
+    assert _import_reporting(second_model) == ({"INFO"}, "Updated 5 cameras from sparse/0")
     assert (bpy.context.scene.render.resolution_x, bpy.context.scene.camera.name) == render_before
-    second = _imported_cameras(colmap_import.COLLECTION_NAME + ".001")
-    assert not set(first) & set(second)
-    assert sorted(o["brdf_image_name"] for o in second) == sorted(v[0] for v in _views())
-    assert all(o.name.endswith(".001") for o in second)  # Blender's suffix; the property is exact
+    assert sorted(_camera_objects(), key=lambda o: o.name) == sorted(first, key=lambda o: o.name)
+    assert sorted(o.name for o in _camera_objects()) == names  # no "a.jpg.001"
+    assert [c.name for c in bpy.data.collections] == [colmap_import.COLLECTION_NAME]
+    rec = pycolmap.Reconstruction(str(second_model))
+    by_name = {rec.image(i).name: rec.image(i) for i in rec.reg_image_ids()}
+    old = pycolmap.Reconstruction(str(first_model))
+    old_a = next(old.image(i) for i in old.reg_image_ids() if old.image(i).name == "a.jpg")
+    assert np.abs(_expected_matrix_world(old_a) - _expected_matrix_world(by_name["a.jpg"])
+                  ).max() > 0.1  # the second model really moved the cameras
+    for obj in first:
+        np.testing.assert_allclose(np.array(obj.matrix_world),
+                                   _expected_matrix_world(by_name[obj["brdf_image_name"]]),
+                                   atol=1e-5)
+        assert obj["brdf_colmap_model"] == str(second_model)
+    # the new lenses too, through Blender's own projection (this sets the render size)
+    errors = np.concatenate(list(_reprojection_errors(second_model).values()))
+    assert errors.max() < 0.01
+    assert _snapshot([scan]) == scan_before
+
+
+def test_reimport_keeps_a_renamed_camera_and_adds_only_new_images(tmp_path):
+    """Matched by the COLMAP image name the camera carries, not its object name; an image
+    new to the model gets a camera in the collection of the others."""
+    base = _write_model(tmp_path / "base" / "sparse" / "0", _views()[:3])
+    grown = _write_model(tmp_path / "grown" / "sparse" / "1", _views())
+    colmap_import.import_cameras(bpy.context.scene, base)
+    renamed = next(o for o in _camera_objects() if o["brdf_image_name"] == "a.jpg")
+    renamed.name = "Front"
+    assert _import_reporting(grown) == ({"INFO"}, "Imported 2 and updated 3 cameras from "
+                                                  "sparse/1")
+    assert len(_camera_objects()) == 5
+    assert sorted(o.name for o in _camera_objects()) == sorted(
+        ["Front", "b_portrait.jpg", "c.jpg", "d.jpg", "sub/e.jpg"])
+    assert bpy.data.objects["Front"]["brdf_image_name"] == "a.jpg"
+    assert len(_imported_cameras()) == 5
+
+
+def test_two_cameras_carrying_one_image_name_stop_the_import(tmp_path):
+    model = _write_model(tmp_path / "sparse" / "0", _views())
+    cams = colmap_import.import_cameras(bpy.context.scene, model)
+    copy = cams[0].copy()
+    bpy.context.scene.collection.objects.link(copy)
+    before = _snapshot(_camera_objects())
+    with pytest.raises(ValueError, match="both carry COLMAP image a.jpg; delete one") as error:
+        colmap_import.import_cameras(bpy.context.scene, model)
+    assert "\n" not in str(error.value)
+    assert _snapshot(_camera_objects()) == before
+
+
+def test_point_cloud_imported_twice_is_one_object(tmp_path):
+    model = _write_model(tmp_path / "sparse" / "0", _views())
+    _import_reporting(model, point_cloud=True)
+    _import_reporting(model, point_cloud=True)
+    clouds = [o for o in bpy.data.objects if o.type == "MESH"]
+    assert len(clouds) == 1 and len(clouds[0].data.vertices) == 200
+    assert len(bpy.data.meshes) == 1  # the first cloud's mesh went with it
+
+
+def test_model_label_names_the_last_two_parts():
+    assert colmap_import.model_label("/captures/statue/sparse/0") == "sparse/0"
+    assert colmap_import.model_label("/captures/statue/sparse/0/") == "sparse/0"
+    assert colmap_import.model_label("model") == "model"
 
 
 def test_point_cloud(models):

@@ -4,12 +4,18 @@ import pytest
 
 from brdf_reconstruct.brdf_addon import job as job_file
 
+# the smallest scan load() accepts: one triangle (its header is checked, issue 13)
+TRIANGLE_PLY = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                b"property float y\nproperty float z\nelement face 1\n"
+                b"property list uchar int vertex_indices\nend_header\n"
+                b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+
 
 @pytest.fixture
 def folder(tmp_path):
     for name in ("scan.ply", "lit/0012.exr", "lit/probe.exr", "sparse/0/cameras.bin"):
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
-        (tmp_path / name).write_bytes(b"")
+        (tmp_path / name).write_bytes(TRIANGLE_PLY if name == "scan.ply" else b"")
     return tmp_path
 
 
@@ -146,3 +152,53 @@ def test_a_byte_order_mark_is_not_an_error(folder):
 def test_missing_job_file(tmp_path):
     with pytest.raises(job_file.JobError, match="job file not found"):
         job_file.load(tmp_path / "nope.toml")
+
+
+PHOTO = '\n[[photo]]\nimage = "lit/0012.exr"\ncamera = "c"\nlight = [0, 0, 1]\n'
+
+
+@pytest.mark.parametrize("name, data, key, message", [
+    ("notes.blend", b"my notes about the scene\n", "blend",
+     "blend notes.blend is not a Blender file"),
+    ("empty.blend", b"", "blend", "blend empty.blend is empty (0 bytes)"),
+    ("empty.ply", b"", "mesh", "mesh empty.ply is empty (0 bytes)"),
+    ("notes.ply", b"my notes about the scan\n", "mesh",
+     'mesh notes.ply is not a PLY file (it does not start with "ply")'),
+    ("points.ply", TRIANGLE_PLY.replace(b"element face 1", b"element face 0"), "mesh",
+     "mesh points.ply has no faces"),
+    ("points.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\n", "mesh", "mesh points.obj has no faces"),
+    ("empty.stl", b"", "mesh", "mesh empty.stl is empty (0 bytes)"),
+    ("notes.stl", b"my notes about the scan\n", "mesh", "mesh notes.stl is not an STL file"),
+])
+def test_a_bad_blend_or_mesh_file_is_one_sentence(folder, name, data, key, message):
+    """Checked in load(), before any work: Blender would stop with a traceback or
+    import nothing (issue 13). The file is left as it was."""
+    (folder / name).write_bytes(data)
+    target = 'object = "S"' if key == "blend" else ""
+    with pytest.raises(job_file.JobError) as error:
+        _load(folder, f'{key} = "{name}"\n{target}\n{PHOTO}')
+    assert message in str(error.value) and "\n" not in str(error.value), str(error.value)
+    assert (folder / name).read_bytes() == data
+
+
+def test_files_blender_writes_pass_the_checks(folder):
+    """The independent side of the header checks: every mesh format as Blender's own
+    exporters write it (binary and ASCII PLY and STL, OBJ) and .blend files saved
+    plain and compressed load without a word."""
+    bpy = pytest.importorskip("bpy")
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=1)
+    files = {"bin.ply": (bpy.ops.wm.ply_export, {"ascii_format": False}),
+             "text.ply": (bpy.ops.wm.ply_export, {"ascii_format": True}),
+             "bin.stl": (bpy.ops.wm.stl_export, {"ascii_format": False}),
+             "text.stl": (bpy.ops.wm.stl_export, {"ascii_format": True}),
+             "mesh.obj": (bpy.ops.wm.obj_export, {})}
+    for name, (export, options) in files.items():
+        export(filepath=str(folder / name), export_selected_objects=True, **options)
+        job = _load(folder, f'mesh = "{name}"\n{PHOTO}')
+        assert job.mesh == folder / name
+    for name, compress in (("plain.blend", False), ("packed.blend", True)):
+        bpy.ops.wm.save_as_mainfile(filepath=str(folder / name), copy=True, compress=compress)
+        job = _load(folder, f'blend = "{name}"\nobject = "S"\n{PHOTO}')
+        assert job.blend == folder / name
+    heads = {(folder / n).read_bytes()[:4] for n in ("plain.blend", "packed.blend")}
+    assert heads == {b"BLEN", b"\x28\xb5\x2f\xfd"}  # both kinds were really written

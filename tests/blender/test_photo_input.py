@@ -81,6 +81,18 @@ def test_resolution_mismatch_is_one_clear_error(tiny):
     _reconstruct_error(r"crop\.exr is 48x40 pixels but its camera view0 is 48x48")
 
 
+def test_a_one_pixel_photo_says_its_size_and_the_cameras(tiny):
+    """Issue 13: a 1x1 photo (the same aspect ratio as its 48x48 camera) ended in an
+    internal array shape; Blender renders no G-buffer under 4 pixels a side."""
+    path = write_image(tiny["dir"] / "dot.exr", tiny["linear"][24:25, 24:25].astype(np.float32),
+                       oiio.FLOAT)
+    _entry(tiny, path)
+    _reconstruct_error(r"^Error: Photo dot\.exr is only 1x1 pixels, but its camera view0 "
+                       r"takes 48x48 \(camera\): give the photo at its camera's size \(or "
+                       r"scaled, at least 4 pixels a side\)$")
+    assert not (tiny["dir"] / "out").exists()
+
+
 def test_corrupt_file_is_one_clear_error(tiny):
     data = tiny["photo"].read_bytes()
     path = tiny["dir"] / "cut.exr"

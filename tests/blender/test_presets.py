@@ -1,6 +1,7 @@
 """The Fast / Balanced / Accurate presets (brdf_addon/presets.py): the panel's
-defaults are Balanced, choosing a preset sets its values, and a job file's own
-values win over its preset."""
+defaults are Balanced, choosing a preset sets its values, editing one of them to
+another value makes the preset Custom, and a job file's own values win over its
+preset by the same rule."""
 
 import pathlib
 
@@ -36,6 +37,64 @@ def test_choosing_a_preset_sets_its_values(scene, name):
     assert _values(s, PRESETS[name]) == pytest.approx(PRESETS[name])
 
 
+# a value other than every preset's, for each setting a preset names
+OFF_PRESET = {"samples": 33, "trials": 7, "subset_fraction": 0.25, "kl_path": "CYCLES",
+              "kl_samples": 64}
+
+
+def test_every_setting_a_preset_names_has_an_off_preset_value():
+    keys = {k for values in PRESETS.values() for k in values}
+    assert set(OFF_PRESET) == keys
+    for values in PRESETS.values():
+        assert all(values[k] != v for k, v in OFF_PRESET.items() if k != "kl_path")
+    assert OFF_PRESET["kl_path"] != PRESETS["FAST"]["kl_path"]
+
+
+def test_editing_a_preset_value_makes_it_custom_and_choosing_again_restores(scene):
+    s = scene.brdf
+    s.preset = "FAST"
+    assert _values(s, PRESETS["FAST"]) == pytest.approx(PRESETS["FAST"])
+    assert s.preset == "FAST"  # its own assignments did not make it Custom
+    s.trials = 7
+    assert s.preset == "CUSTOM" and s.trials == 7
+    s.preset = "BALANCED"
+    assert s.preset == "BALANCED"
+    assert _values(s, PRESETS["BALANCED"]) == pytest.approx(PRESETS["BALANCED"])
+
+
+@pytest.mark.parametrize("key", list(OFF_PRESET))
+@pytest.mark.parametrize("name", ["FAST", "BALANCED"])
+def test_each_preset_setting_edited_makes_it_custom(scene, key, name):
+    s = scene.brdf
+    s.preset = name
+    setattr(s, key, OFF_PRESET[key])
+    assert s.preset == "CUSTOM"
+    assert getattr(s, key) == pytest.approx(OFF_PRESET[key])  # the edit itself is kept
+
+
+def test_setting_the_presets_own_value_keeps_it(scene):
+    s = scene.brdf
+    s.preset = "FAST"
+    s.trials = PRESETS["FAST"]["trials"]
+    s.subset_fraction = PRESETS["FAST"]["subset_fraction"]
+    assert s.preset == "FAST"
+
+
+def test_settings_no_preset_names_keep_it(scene):
+    s = scene.brdf
+    s.preset = "ACCURATE"
+    s.seed, s.min_reliable_samples, s.kl_bins, s.curvature_threshold = 5, 40, 32, 0.3
+    assert s.preset == "ACCURATE"
+
+
+def test_custom_stays_custom_and_keeps_the_values(scene):
+    s = scene.brdf
+    s.preset = "CUSTOM"
+    s.samples, s.trials = 3, 2
+    s.trials = 16  # Balanced's value, but the preset is Custom: nothing is set back
+    assert s.preset == "CUSTOM" and (s.samples, s.trials) == (3, 16)
+
+
 def _job(scene, settings):
     mesh = bpy.data.meshes.new("scan")
     mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
@@ -62,3 +121,20 @@ def test_job_preset_alone_is_that_preset(scene):
 def test_job_unknown_preset_is_one_sentence(scene):
     with pytest.raises(job_module.JobError, match="setting preset = 'QUICK'"):
         job_module.apply(_job(scene, {"preset": "QUICK"}), scene)
+
+
+def test_job_preset_with_its_own_value_stays_that_preset(scene):
+    """The update rule in a job: a value equal to the preset's keeps the preset."""
+    job_module.apply(_job(scene, {"preset": "FAST", "trials": PRESETS["FAST"]["trials"]}),
+                     scene)
+    assert scene.brdf.preset == "FAST"
+
+
+def test_job_value_without_a_preset_is_judged_against_the_default(scene):
+    """trials = 16 alone is the default Balanced's own value, so Balanced stays;
+    trials = 5 alone is not, so the preset is Custom."""
+    job_module.apply(_job(scene, {"trials": 16}), scene)
+    assert scene.brdf.preset == "BALANCED"
+    bpy.data.objects.remove(bpy.data.objects["scan"])
+    job_module.apply(_job(scene, {"trials": 5}), scene)
+    assert scene.brdf.preset == "CUSTOM" and scene.brdf.trials == 5

@@ -76,10 +76,26 @@ def test_light_from_direction(tiny):
     np.testing.assert_allclose(light_sources.photo_light(tiny["scene"], p), [0, 0, 1], atol=1e-7)
 
 
+def test_a_light_direction_that_is_not_finite_says_so(tiny):
+    """Issue 13: NaN typed in the panel was reported as a zero direction; an infinite
+    component (which Blender stores as the float32 maximum) is not finite either."""
+    p = _add_photo(tiny)
+    p.light_source, p.direction = "DIRECTION", (math.nan, 0.0, 1.0)
+    with pytest.raises(ValueError, match=r"^photo view0\.exr has a light direction that is "
+                                         r"not finite \(nan, 0, 1\): type three numbers$"):
+        light_sources.photo_light(tiny["scene"], p)
+    p.direction = (0.0, -math.inf, 1.0)
+    with pytest.raises(ValueError, match=r"not finite \(0, -inf, 1\)"):
+        light_sources.photo_light(tiny["scene"], p)
+    p.direction = (0.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match="has a zero light direction"):
+        light_sources.photo_light(tiny["scene"], p)
+
+
 def test_light_from_date_time_place_creates_a_sun(tiny):
     p = _add_photo(tiny)
     p.when, p.utc_offset, p.latitude, p.longitude = "2026-06-21 15:30:00", 2.0, 48.1, 11.6
-    p.north_offset = 90.0
+    p.north_offset = math.radians(90.0)  # an angle property: radians
     bpy.context.scene.brdf.active_photo = 0
     assert bpy.ops.brdf.light_from_time() == {"FINISHED"}
     when = dt.datetime(2026, 6, 21, 15, 30, tzinfo=dt.timezone(dt.timedelta(hours=2)))
@@ -269,6 +285,38 @@ def test_output_folder_only_gets_new_files(tiny):
     bpy.ops.brdf.reconstruct()
     assert mine.read_text() == "the user's file"
     assert {"brdf_0.binary", "report.json"} <= set(os.listdir(out))
+
+
+def test_an_unsaved_blend_refuses_a_relative_output_folder(tiny, tmp_path, monkeypatch):
+    """Issue 13: the default output folder //brdf_out of a .blend never saved resolved
+    against the folder Blender was started from. Refused before any work, nothing
+    written there; an absolute folder, or // once the .blend is saved, is used."""
+    _add_photo(tiny)
+    started = tmp_path / "started_here"
+    started.mkdir()
+    monkeypatch.chdir(started)
+    s = tiny["scene"].brdf
+    photo = _digest(tiny["photo"])
+    assert bpy.data.filepath == ""
+    for value in ("//brdf_out", ""):  # "" is the default's stand-in
+        s.output_dir = value
+        with pytest.raises(RuntimeError, match=r"^Error: The output folder //brdf_out is "
+                                               r"relative to the \.blend, which is not saved: "
+                                               r"save the \.blend first or set an absolute "
+                                               r"output folder$"):
+            bpy.ops.brdf.reconstruct()
+    s.output_dir = "brdf_out"  # relative without //: the starting folder too, saved or not
+    with pytest.raises(RuntimeError, match="relative to the folder Blender was started from: "
+                                           "start it with // for the .blend's folder"):
+        bpy.ops.brdf.reconstruct()
+    assert list(started.iterdir()) == [] and _digest(tiny["photo"]) == photo
+    bpy.ops.wm.save_as_mainfile(filepath=str(tiny["dir"] / "saved.blend"))
+    s.output_dir = "//brdf_out"
+    from brdf_reconstruct.brdf_addon import outputs
+
+    assert outputs.output_path(tiny["scene"]) == tiny["dir"] / "brdf_out"
+    s.output_dir = str(tiny["dir"] / "out")  # absolute: as the batch sets it
+    assert outputs.output_path(tiny["scene"]) == tiny["dir"] / "out"
 
 
 def test_face_sets_are_regions(tiny):

@@ -93,3 +93,39 @@ def test_lambert_family_reconstructs_from_one_sample(tmp_path):
     # exactly in the span; the level must still be right to a few percent
     got = rec.table.reshape(3, -1)[:, B.cells]
     np.testing.assert_allclose(np.median(got), 0.3 / np.pi, rtol=0.05)
+
+
+def test_build_reports_progress_after_every_table_and_block():
+    from brdf_reconstruct.core.brdf.basis import _BLOCK
+
+    calls = []
+    tables = [_lambert_table(a) for a in ([0.1, 0.2, 0.3], [0.5, 0.4, 0.3], [0.9, 0.9, 0.8])]
+    B = basis.build(iter(tables), n_components=2, progress=lambda f, m: calls.append((f, m)),
+                    n_tables=len(tables))
+    n_blocks = -(-B.info["n_cells"] // _BLOCK)
+    fractions = [f for f, _ in calls]
+    # one call per table, one per block in each of the two passes, and the last one
+    assert len(calls) == len(tables) + 2 * n_blocks + 1
+    assert fractions == sorted(fractions) and fractions[-1] == 1.0 and fractions[0] > 0
+    assert all("\n" not in m and "BRDF basis" in m for _, m in calls)
+    assert calls[0][1].endswith("table 1/3")
+
+
+def test_a_cancelled_build_raises_and_caches_nothing(tmp_path):
+    from brdf_reconstruct.core import progress
+
+    folder = _folder(tmp_path, [[0.1, 0.2, 0.3], [0.5, 0.4, 0.3], [0.9, 0.9, 0.8]])
+    seen = []
+
+    def cancelled():  # the user presses Esc after the second table
+        return len(seen) >= 2
+
+    cache = tmp_path / "cache"
+    with pytest.raises(progress.Cancelled):
+        basis.load_merl_folder(folder, cache_dir=cache, n_components=2,
+                               progress=lambda f, m: seen.append(m), cancelled=cancelled)
+    assert len(seen) == 2  # stopped at the first check after the request
+    assert not cache.exists() or list(cache.iterdir()) == []
+    # the next run builds it as if nothing had happened
+    B = basis.load_merl_folder(folder, cache_dir=cache, n_components=2)
+    assert B.n_components == 2 and len(list(cache.glob("basis-*.npz"))) == 1

@@ -119,6 +119,21 @@ def test_half_exr_is_linear_and_16_bit(tmp_path):
     assert (photo.bit_depth, photo.is_float, photo.encoding) == (16, True, "linear")
 
 
+def test_half_exr_beyond_its_range_reads_as_inf_and_is_refused_as_non_finite(tmp_path):
+    """Half floats end at 65504: a larger value written to a half EXR is stored as
+    Inf, so it reaches the user as the NaN/Inf sentence (photo_checks.check_range
+    takes the values a float32 EXR can hold beyond any camera)."""
+    values = np.full((4, 4, 3), 0.1, np.float32)
+    values[1, 1], values[2, 2, 0], values[3, 0] = 1e30, 7e4, 65504.0
+    write_image(tmp_path / "over.exr", values, oiio.HALF)
+    photo = photo_io.read_photo_file(tmp_path / "over.exr")
+    assert np.isposinf(photo.radiance[1, 1]).all() and np.isposinf(photo.radiance[2, 2, 0])
+    assert photo.radiance[3, 0, 0] == 65504.0  # the largest half is kept as it is
+    assert photo.nonfinite == 2
+    with pytest.raises(ValueError, match="has 2 pixels with NaN or Inf values"):
+        photo_io.check_finite(photo, "over.exr")
+
+
 def test_16_bit_tiff_is_linear_code_over_65535_exactly(tmp_path):
     codes = np.random.default_rng(4).integers(0, 65536, (7, 5, 3)).astype(np.uint16)
     codes[0, 0] = [65535, 0, 12]
