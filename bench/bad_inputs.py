@@ -643,7 +643,8 @@ def run_case(case: Case, folder: pathlib.Path, timeout: float = TIMEOUT_S) -> di
     command = [sys.executable, *BATCH, *argv]
     t0 = time.perf_counter()
     process = subprocess.Popen(command, cwd=folder, env=_child_env(), text=True,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               preexec_fn=_ctrl_c_as_in_a_terminal)
     killed = threading.Event()
 
     def kill():
@@ -672,6 +673,15 @@ def run_case(case: Case, folder: pathlib.Path, timeout: float = TIMEOUT_S) -> di
             "stdout": "".join(stdout_lines), "stderr": "".join(stderr_lines),
             "seconds": round(time.perf_counter() - t0, 2), "interrupt_sent": sent,
             "timed_out": killed.is_set()}
+
+
+def _ctrl_c_as_in_a_terminal() -> None:
+    """In the child, before the batch starts: SIGINT back to its default. A sweep
+    started in the background by a non-interactive shell (``cmd &``, as CI may) has
+    SIGINT ignored, which its children inherit, and Python then installs no
+    KeyboardInterrupt handler: the interruption cases would measure the shell, not
+    the batch entry. A user's Ctrl+C in a terminal always meets the default."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _names_in(line: str, names) -> bool:
