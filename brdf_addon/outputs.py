@@ -138,7 +138,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
         "cycles": {
             # the fewest each comparison needs, as measured (see docs/results.md)
             "gbuffers": {"samples": 1, "bounces": 0, "pixel_filter_px": 0.01,
-                         "why": "one sample at the pixel centre is exact geometry; "
+                         "why": "one sample at the pixel center is exact geometry; "
                                 "tests/blender/test_gbuffer.py"},
             "selection": {"path": settings.kl_path.lower(),
                           "samples": settings.kl_samples if settings.kl_path == "CYCLES"

@@ -190,8 +190,8 @@ def apply_irradiance(gathered: list[GatheredPhoto]) -> tuple[list[pipeline.Photo
         given = np.array([np.asarray(g.input.irradiance, dtype=np.float64) for g in gathered])
         if (given == given[0]).all():
             return [g.input for g in gathered], [
-                "no grey card or reference region: irradiance assumed equal across photos"]
-        return [g.input for g in gathered], ["no grey card or reference region: irradiance "
+                "no gray card or reference region: irradiance assumed equal across photos"]
+        return [g.input for g in gathered], ["no gray card or reference region: irradiance "
                                              "as given per photo"]
     ratios, notes = irradiance.relative_irradiance(
         references, names=[g.input.name for g in gathered])

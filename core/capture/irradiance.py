@@ -44,7 +44,7 @@ class Reference:
 
 def grey_card(radiance, cosine: float = 1.0, saturated=None) -> Reference:
     """A `Reference` for a grey card: (M, 3) or (3,) radiance, one cosine (default 1)."""
-    return Reference(np.atleast_2d(np.asarray(radiance)), float(cosine), saturated, "grey card")
+    return Reference(np.atleast_2d(np.asarray(radiance)), float(cosine), saturated, "gray card")
 
 
 def _slopes(ref: Reference, name: str) -> tuple[np.ndarray, int, int]:
@@ -113,11 +113,11 @@ def relative_irradiance(references, reference_photo: int = 0, names=None):
             raise ValueError(f"references[{i}] must be a Reference or None, got {type(r).__name__}")
     if all(r is None for r in references):
         return (np.ones((n, 3)),
-                ["no grey card or reference region: irradiance assumed equal across photos"])
+                ["no gray card or reference region: irradiance assumed equal across photos"])
     missing = [i for i, r in enumerate(references) if r is None]
     if missing:
         raise ValueError(
-            f"{names[missing[0]]} has no grey card or reference region while other photos do; "
+            f"{names[missing[0]]} has no gray card or reference region while other photos do; "
             "mark one in it or remove the others"
         )
     fits = [_slopes(r, names[i]) for i, r in enumerate(references)]

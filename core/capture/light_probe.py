@@ -121,7 +121,7 @@ def _highlight(image, center_px, radius_px, percentile, peak_fraction):
     disc = (cols - cx) ** 2 + (rows - cy) ** 2 <= r * r
     if not disc.any():
         raise ValueError(
-            f"the sphere circle (centre {(cx, cy)}, radius {r}) covers no pixel of the "
+            f"the sphere circle (center {(cx, cy)}, radius {r}) covers no pixel of the "
             f"{width}x{height} image"
         )
     values = lum[disc]
@@ -145,7 +145,7 @@ def _highlight(image, center_px, radius_px, percentile, peak_fraction):
     if blob.sum() > 0.25 * disc.sum():
         raise ValueError(
             "no distinct highlight found on the sphere: its disc is nearly uniform "
-            "(is the light in view, and are the centre and radius right?)"
+            "(is the light in view, and are the center and radius right?)"
         )
     window = ndimage.binary_dilation(blob, iterations=_HIGHLIGHT_GROW) & disc
     ring = ndimage.binary_dilation(window, iterations=_HIGHLIGHT_GROW) & disc & ~window
@@ -193,7 +193,7 @@ def light_from_highlight(highlight_px, center_px, radius_px, camera=None):
         if rho2 > 1.0 + 1e-9:
             raise ValueError(
                 f"the highlight at ({hx:.1f}, {hy:.1f}) px lies outside the sphere's disc "
-                f"(centre ({cx:.1f}, {cy:.1f}), radius {r:.1f}); check the centre and radius"
+                f"(center ({cx:.1f}, {cy:.1f}), radius {r:.1f}); check the center and radius"
             )
         n = np.array([nx, ny, np.sqrt(max(0.0, 1.0 - rho2))])
         n /= np.linalg.norm(n)
@@ -207,7 +207,7 @@ def light_from_highlight(highlight_px, center_px, radius_px, camera=None):
         if disc < -1e-9:
             raise ValueError(
                 f"the highlight at ({hx:.1f}, {hy:.1f}) px lies outside the sphere's disc "
-                f"(centre ({cx:.1f}, {cy:.1f}), radius {r:.1f}); check the centre and radius"
+                f"(center ({cx:.1f}, {cy:.1f}), radius {r:.1f}); check the center and radius"
             )
         point = (b - np.sqrt(max(disc, 0.0))) * d  # the near intersection
         n = point - centre

@@ -205,7 +205,7 @@ def read_photo_file(path, color_space: str = "AUTO",
     name = os.fspath(path)
     space = str(color_space).strip().upper()
     if space not in COLOR_SPACES:
-        raise ValueError(f"colour space for photo {name} must be AUTO, SRGB or LINEAR, "
+        raise ValueError(f"color space for photo {name} must be AUTO, SRGB or LINEAR, "
                          f"not {color_space!r}")
     if white_level is not None:
         white_level = float(white_level)

@@ -160,7 +160,7 @@ def test_photos_under_their_own_light_pass_without_a_note(tiny):
     _, capture = gathering.gather_capture(tiny["scene"])
     check = capture["photos"][0]["light_check"]
     assert "notes" not in capture["photos"][0] and gathering.capture_notes(capture) == [
-        "no grey card or reference region: irradiance assumed equal across photos"]
+        "no gray card or reference region: irradiance assumed equal across photos"]
     assert check["shadow_pixels"] >= 16 and check["shadow_to_lit"] < 0.01  # no sky: 0
     _with_cast_shadows(tiny)
     tiny["scene"].brdf.photos.clear()

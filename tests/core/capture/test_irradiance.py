@@ -79,20 +79,20 @@ def test_grey_card_with_a_cosine_exact():
     ratios, notes = irradiance.relative_irradiance(refs, names=["a.jpg", "b.jpg", "c.jpg"])
     np.testing.assert_allclose(ratios[1], 2.0, rtol=1e-14)
     np.testing.assert_allclose(ratios[2], 0.25 / np.cos(np.radians(30)), rtol=1e-14)
-    assert notes[0] == "a.jpg: irradiance reference from its grey card (1 of 1 pixels)"
-    assert notes[1] == "b.jpg: irradiance x(2, 2, 2) of a.jpg from its grey card (1 of 1 pixels)"
-    assert notes[2].endswith("from its grey card (50 of 50 pixels)")
+    assert notes[0] == "a.jpg: irradiance reference from its gray card (1 of 1 pixels)"
+    assert notes[1] == "b.jpg: irradiance x(2, 2, 2) of a.jpg from its gray card (1 of 1 pixels)"
+    assert notes[2].endswith("from its gray card (50 of 50 pixels)")
 
 
 def test_no_reference_anywhere_is_equal_irradiance_with_one_note():
     ratios, notes = irradiance.relative_irradiance([None, None, None])
     np.testing.assert_array_equal(ratios, np.ones((3, 3)))
-    assert notes == ["no grey card or reference region: irradiance assumed equal across photos"]
+    assert notes == ["no gray card or reference region: irradiance assumed equal across photos"]
 
 
 def test_mixed_references_is_an_error_naming_the_photo():
     card = irradiance.grey_card([0.05, 0.05, 0.05])
-    with pytest.raises(ValueError, match=r"^b\.jpg has no grey card or reference region while"):
+    with pytest.raises(ValueError, match=r"^b\.jpg has no gray card or reference region while"):
         irradiance.relative_irradiance([card, None, card, None], names=["a.jpg", "b.jpg", "c", "d"])
 
 
@@ -135,7 +135,7 @@ def test_float32_matches_float64():
 
 def test_errors():
     card = irradiance.grey_card([0.05, 0.05, 0.05])
-    with pytest.raises(ValueError, match="the grey card of photo 2 has no usable pixel"):
+    with pytest.raises(ValueError, match="the gray card of photo 2 has no usable pixel"):
         irradiance.relative_irradiance([card, irradiance.grey_card([0.1, 0.1, 0.1], cosine=0.05)])
     with pytest.raises(ValueError, match="the reference region of photo 1 has no usable pixel"):
         irradiance.relative_irradiance(
