@@ -18,7 +18,7 @@ import pathlib
 import tomllib
 
 KNOWN_TOP = {"blend", "mesh", "mesh_up", "object", "colmap", "up", "out", "overwrite",
-             "settings", "photo"}
+             "basis", "settings", "photo"}
 KNOWN_PHOTO = {"image", "camera", "light", "irradiance", "mask", "sun", "probe", "color_space",
                "exposure", "grey_card", "reference_region", "silhouette_margin"}
 KNOWN_SUN = {"date", "utc_offset", "latitude", "longitude", "north_offset"}
@@ -53,6 +53,7 @@ class Job:
     mesh_up: str = "Z"
     up: list | str | None = None
     overwrite: bool = False
+    basis: tuple[str, pathlib.Path | None] | None = None  # (kind, folder); None: preferences
     settings: dict = dataclasses.field(default_factory=dict)
     photos: list = dataclasses.field(default_factory=list)
 
@@ -91,6 +92,8 @@ def load(path) -> Job:
         if not isinstance(data["overwrite"], bool):
             raise JobError(f"overwrite must be true or false, got {data['overwrite']!r}")
         job.overwrite = data["overwrite"]
+    if "basis" in data:
+        job.basis = _basis(base, data["basis"])
     if "blend" in data:
         job.blend = _file(base, data["blend"], "blend")
         if job.blend == job.out / "scene.blend":
@@ -193,6 +196,23 @@ def _check_input(path: pathlib.Path, field: str) -> None:
         check(path, field)
     except ValueError as error:
         raise JobError(str(error)) from None
+
+
+def _basis(base: pathlib.Path, value) -> tuple[str, pathlib.Path | None]:
+    """The job's ``basis``: "analytic", "measured" or a folder of MERL ``.binary``
+    files (relative to the job file), checked now."""
+    if value in ("analytic", "measured"):
+        return value.upper(), None
+    if not isinstance(value, str) or not value:
+        raise JobError(f'basis must be "analytic", "measured" or a folder of MERL .binary '
+                       f"files, got {value!r}")
+    folder = (base / value).resolve()
+    if not folder.is_dir():
+        raise JobError(f'basis {value}: not "analytic" or "measured", and no such folder '
+                       f"{folder}")
+    if not any(folder.glob("*.binary")):
+        raise JobError(f"basis folder {folder} holds no MERL .binary files")
+    return "FOLDER", folder
 
 
 def _positive_finite(value) -> bool:
@@ -344,6 +364,9 @@ def apply(job: Job, scene) -> None:
             raise JobError(f"setting {key} = {value!r}: {error}") from None
     settings.output_dir = str(job.out)
     settings.overwrite = job.overwrite
+    if job.basis is not None:
+        settings.basis = job.basis[0]
+        settings.basis_folder = str(job.basis[1] or "")
     for i, entry in enumerate(job.photos):
         try:
             camera = _camera(scene, entry.get("camera"), entry["image"].name)

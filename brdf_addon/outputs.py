@@ -67,7 +67,7 @@ def _as_image(name: str, picture: np.ndarray) -> bpy.types.Image:
 
 def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
                bake: bool = True, fits: dict | None = None,
-               capture: dict | None = None) -> dict:
+               capture: dict | None = None, basis: dict | None = None) -> dict:
     """Write tables, pictures, materials and ``report.json``; fill ``scene.brdf.results``.
 
     Returns the report dict. Existing files of the same name in the output
@@ -75,6 +75,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
     ``fits``: {region: (winner, LobeFit)} made beforehand off the main thread;
     a region whose winner changed since (Cycles selection) is fitted here.
     ``capture``: what was applied to the photos (``gather_capture``), reported.
+    ``basis``: which PCA basis the run stood on (``prefs.load_planned``), reported.
     """
     settings = scene.brdf
     out = output_dir(scene)
@@ -133,6 +134,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
         "scan": settings.target.name,
         "photos": result.photo_counts,
         "capture": capture or {},
+        "basis": basis or {},
         "regions": regions,
         "timings_s": timings | {f"pipeline_{k}": v for k, v in result.timings.items()},
         "cycles": {

@@ -187,6 +187,9 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
         if s.kl_path == "CYCLES":
             col.prop(s, "kl_samples")
         layout.prop(s, "seed")
+        layout.prop(s, "basis")
+        if s.basis == "FOLDER":
+            layout.prop(s, "basis_folder")
         layout.prop(s, "output_dir")
         layout.prop(s, "overwrite")
 

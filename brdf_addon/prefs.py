@@ -20,9 +20,25 @@ DEVICES = [("CPU", "CPU", "Render with the CPU"),
             "falls back to the CPU when there is none")]
 
 
+BASES = [("ANALYTIC", "Analytic (Built-In)", "150 analytic materials shipped with the "
+          "extension; no data license"),
+         ("MEASURED", "Measured (MERL)", "80 measured MERL materials as Sztrajman et al. "
+          "(2021) neural BRDFs (MIT), from the pack file below; the MERL measurements they "
+          "were fitted to are for research use only, which you accept by choosing it"),
+         ("FOLDER", "MERL Folder", "Your own folder of MERL .binary files (BRDF Database)")]
+MEASURED_PACK_VARIABLE = "BRDF_MEASURED_PACK"  # the pack file when the preference is empty
+
+
 class BRDFPreferences(AddonPreferences):
     bl_idname = PACKAGE
 
+    basis: EnumProperty(name="Basis", items=BASES, default="ANALYTIC",
+                        description="The PCA basis of BRDFs every reconstruction stands on "
+                        "(a scene can choose its own)")
+    measured_pack: StringProperty(
+        name="Measured Pack", subtype="FILE_PATH", default="",
+        description="merl_nbrdf.npz, the measured materials' networks (empty = "
+        "$BRDF_MEASURED_PACK); the MERL data behind them are for research use")
     database_folder: StringProperty(
         name="BRDF Database", subtype="DIR_PATH", default="",
         description="Folder of MERL .binary files for the PCA basis (empty = built-in basis)")
@@ -34,6 +50,11 @@ class BRDFPreferences(AddonPreferences):
 
     def draw(self, _context):
         layout = self.layout
+        layout.prop(self, "basis")
+        if self.basis == "MEASURED":
+            layout.prop(self, "measured_pack")
+            layout.label(text="The MERL measurements are for research use only",
+                         icon="INFO")
         layout.prop(self, "database_folder")
         layout.prop(self, "cache_folder")
         layout.prop(self, "device")
@@ -43,7 +64,12 @@ CLASSES = (BRDFPreferences,)
 
 
 class _Defaults:
+    basis = "ANALYTIC"
+    measured_pack = ""
     database_folder = ""
+
+    def is_property_set(self, _name) -> bool:
+        return False
     cache_folder = ""
     device = "CPU"
 
@@ -67,17 +93,66 @@ def cache_dir() -> pathlib.Path:
     return basis.default_cache_dir()
 
 
-def load_basis(progress=None, cancelled=None):
-    """The PCA basis the preferences ask for (built-in, or a MERL folder), cached.
-    progress(fraction, message), cancelled(): as in ``core.brdf.basis.build``,
-    used when the cache misses and the basis is built (first run)."""
+def basis_choice(scene=None) -> tuple[str, str]:
+    """(kind, source) of the basis a run uses: the scene's choice
+    (``scene.brdf.basis``) unless it defers to the preferences. kind is "ANALYTIC",
+    "MEASURED" or "FOLDER"; source the pack file or folder (absolute; "" for the
+    analytic basis). A preference file of 0.1.0 that set only the database folder
+    keeps meaning that folder. ValueError (one sentence) when a source is missing."""
+    p = get()
+    kind, folder = p.basis, p.database_folder
+    if kind == "ANALYTIC" and folder and not p.is_property_set("basis"):
+        kind = "FOLDER"  # 0.1.0's preferences: a folder given meant its basis
+    if scene is not None and scene.brdf.basis != "PREFERENCES":
+        kind, folder = scene.brdf.basis, scene.brdf.basis_folder
+    if kind == "FOLDER":
+        if not folder:
+            raise ValueError("the MERL Folder basis needs a folder of .binary files: set "
+                             "the basis folder, or choose another basis")
+        return kind, bpy.path.abspath(folder)
+    if kind == "MEASURED":
+        import os
+
+        pack = bpy.path.abspath(p.measured_pack) if p.measured_pack else os.environ.get(
+            MEASURED_PACK_VARIABLE, "")
+        if not pack or not os.path.isfile(pack):
+            raise ValueError("the measured basis needs the pack merl_nbrdf.npz: set Measured "
+                             f"Pack in the preferences (or ${MEASURED_PACK_VARIABLE}), or "
+                             "choose another basis" + (f"; {pack} not found" if pack else ""))
+        return kind, pack
+    return "ANALYTIC", ""
+
+
+def basis_plan(scene=None) -> dict:
+    """What :func:`load_planned` needs, read from Blender (main thread): the basis
+    :func:`basis_choice` names and the cache folder. ValueError (one sentence) when
+    its source is missing, so a run refuses it before any work."""
+    kind, source = basis_choice(scene)
+    return {"kind": kind, "source": source, "cache_dir": str(cache_dir())}
+
+
+def load_planned(plan: dict, progress=None, cancelled=None):
+    """The basis of a :func:`basis_plan`, cached (no bpy: a worker thread may call it);
+    and its description for the report ({"kind", "source", "fingerprint",
+    "n_columns", "n_components"}). progress(fraction, message), cancelled(): as in
+    ``core.brdf.basis.build``, used when the cache misses (first run)."""
     from ..core.brdf import basis
 
-    folder = get().database_folder
-    if folder:
-        return basis.load_merl_folder(bpy.path.abspath(folder), cache_dir=cache_dir(),
-                                      progress=progress, cancelled=cancelled)
-    return basis.load_default(cache_dir=cache_dir(), progress=progress, cancelled=cancelled)
+    kind, source = plan["kind"], plan["source"]
+    options = dict(cache_dir=plan["cache_dir"], progress=progress, cancelled=cancelled)
+    if kind == "FOLDER":
+        B = basis.load_merl_folder(source, **options)
+    elif kind == "MEASURED":
+        B = basis.load_measured(source, **options)
+    else:
+        B = basis.load_default(**options)
+    return B, {"kind": kind.lower(), "source": source, "fingerprint": B.fingerprint,
+               "n_columns": int(B.info.get("n_columns", 0)), "n_components": B.n_components}
+
+
+def load_basis(scene=None, progress=None, cancelled=None):
+    """:func:`load_planned` of :func:`basis_plan` in one call (main thread)."""
+    return load_planned(basis_plan(scene), progress=progress, cancelled=cancelled)
 
 
 def cycles_device() -> str:

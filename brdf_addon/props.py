@@ -299,6 +299,21 @@ class BRDFSettings(PropertyGroup):
     seed: IntProperty(name="Seed", default=0, min=0,
                       description="Seed of every random choice (sampling trials); "
                       "same seed, same result")
+    basis: EnumProperty(
+        name="Basis", default="PREFERENCES",
+        description="The PCA basis of BRDFs the reconstruction stands on, for this scene",
+        items=[("PREFERENCES", "From Preferences", "The basis chosen in the extension's "
+                "preferences"),
+               ("ANALYTIC", "Analytic", "The built-in basis of 150 analytic materials (no "
+                "data license)"),
+               ("MEASURED", "Measured (MERL)", "80 measured MERL materials as neural BRDFs "
+                "(set the pack in the preferences); the MERL data are for research use"),
+               ("FOLDER", "MERL Folder", "Your own folder of MERL .binary files (Basis "
+                "Folder)")])
+    basis_folder: StringProperty(name="Basis Folder", subtype="DIR_PATH", default="",
+                                 options=PATH,
+                                 description="Folder of MERL .binary files for the Folder "
+                                 "basis")
     output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//brdf_out",
                                options=PATH,
                                description="Folder for the .binary tables, report and plots")

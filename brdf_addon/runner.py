@@ -86,6 +86,8 @@ class Run:
         self._settings = props.pipeline_settings(scene.brdf)
         self._n_photos = len(scene.brdf.photos)
         self._exposure = photo_input.exposure_plan(scene)
+        self._basis_plan = prefs.basis_plan(scene)  # refused here, before any work
+        self._basis_info = None
 
     @property
     def message(self) -> str:
@@ -123,8 +125,8 @@ class Run:
     def _science(self) -> None:
         try:
             t0 = time.perf_counter()
-            basis = prefs.load_basis(progress=self._basis_progress(),
-                                     cancelled=self._cancelled)
+            basis, self._basis_info = prefs.load_planned(
+                self._basis_plan, progress=self._basis_progress(), cancelled=self._cancelled)
             self._timings["basis_load"] = time.perf_counter() - t0
 
             def progress(f, msg):
@@ -198,7 +200,7 @@ class Run:
         self.progress, self.message = 0.9, "writing results"
         self._timings["total_before_outputs"] = time.perf_counter() - self._t0
         self.report = outputs.write_back(self.scene, self._inputs, value, self._timings, self.bake,
-                                 self._fits, self._capture)
+                                         self._fits, self._capture, self._basis_info)
         self.progress, self.message = 1.0, "done"
         return True
 

@@ -395,3 +395,75 @@ def load_merl_folder(
                       cancelled=cancelled, n_tables=len(files)),
         cache_dir,
     )
+
+
+def _pack_key(path: pathlib.Path, names: tuple[str, ...]) -> str:
+    """The pack file's content hash and the materials taken from it."""
+    h = hashlib.blake2b(path.read_bytes(), digest_size=20)
+    h.update("\n".join(names).encode())
+    return h.hexdigest()
+
+
+def _pack_and_names(pack_path, names):
+    from . import nbrdf
+
+    pack = nbrdf.load(pack_path)
+    chosen = tuple(pack.names if names is None else names)
+    for name in chosen:
+        pack.index(name)  # ValueError naming an unknown material
+    if not chosen:
+        raise ValueError("no measured materials chosen for the basis")
+    return pack, chosen
+
+
+def load_measured(
+    pack_path: str | os.PathLike,
+    names: Iterable[str] | None = None,
+    cache_dir: str | os.PathLike | None = None,
+    n_components: int = N_COMPONENTS,
+    progress: Progress | None = None,
+    cancelled: CancelCheck | None = None,
+) -> Basis:
+    """A basis from measured materials: the neural-BRDF pack's (``core.brdf.nbrdf``)
+    materials ``names`` (default: all), tabulated on the MERL grid; cached under the
+    pack's content hash and the names. progress, cancelled: as in :func:`build`."""
+    from . import nbrdf
+
+    pack, chosen = _pack_and_names(pack_path, None if names is None else tuple(names))
+    fp = _fingerprint("measured:" + _pack_key(pathlib.Path(pack_path), chosen), n_components)
+    return _cached(
+        fp,
+        lambda: build((nbrdf.tabulate(pack, pack.index(n)) for n in chosen), n_components, fp,
+                      progress=progress, cancelled=cancelled, n_tables=len(chosen)),
+        cache_dir,
+    )
+
+
+def load_union(
+    pack_path: str | os.PathLike,
+    names: Iterable[str] | None = None,
+    cache_dir: str | os.PathLike | None = None,
+    n_components: int = N_COMPONENTS,
+    progress: Progress | None = None,
+    cancelled: CancelCheck | None = None,
+) -> Basis:
+    """A basis from the built-in analytic database and the pack's measured materials
+    ``names`` (default: all) together; cached like the two. progress, cancelled: as in
+    :func:`build`."""
+    from . import database, nbrdf
+
+    pack, chosen = _pack_and_names(pack_path, None if names is None else tuple(names))
+    specs = database.training_specs()
+    fp = _fingerprint("union:" + database.database_fingerprint(specs) + ":"
+                      + _pack_key(pathlib.Path(pack_path), chosen), n_components)
+
+    def tables():
+        yield from (database.make_table(s) for s in specs)
+        yield from (nbrdf.tabulate(pack, pack.index(n)) for n in chosen)
+
+    return _cached(
+        fp,
+        lambda: build(tables(), n_components, fp, progress=progress, cancelled=cancelled,
+                      n_tables=len(specs) + len(chosen)),
+        cache_dir,
+    )

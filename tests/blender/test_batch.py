@@ -273,3 +273,27 @@ def test_wrong_command_line_exits_2():
     result = subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch"],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 2 and "usage" in result.stderr
+
+
+def test_a_jobs_basis_folder_is_used_and_reported(job_dir):
+    """basis = "<folder>": the run stands on the PCA basis of those MERL files
+    (three Lambertian tables here, so the basis is built in seconds), and the report
+    names it."""
+    import numpy as np
+
+    from brdf_reconstruct.core.brdf import basis, merl
+
+    folder = job_dir / "my_merl"
+    folder.mkdir(exist_ok=True)
+    for i, albedo in enumerate(([0.2, 0.3, 0.4], [0.6, 0.5, 0.4], [0.9, 0.9, 0.8])):
+        table = np.full((3, merl.N_CELLS), np.nan)
+        table[:, merl.valid_cells()] = np.asarray(albedo)[:, None] / np.pi
+        merl.write(folder / f"m{i}.binary", table.reshape(3, *merl.SHAPE))
+    result = _run(job_dir, GOOD.replace('out = "out"', 'out = "basis_out"\nbasis = "my_merl"'),
+                  "basis.toml")
+    assert result.returncode == 0, result.stderr
+    report = json.loads((job_dir / "basis_out" / "report.json").read_text())
+    expected = basis.load_merl_folder(folder, cache_dir=job_dir / "cache_check")
+    assert report["basis"]["kind"] == "folder" and report["basis"]["source"] == str(folder)
+    assert report["basis"]["fingerprint"] == expected.fingerprint
+    assert report["basis"]["n_columns"] == 9

@@ -44,10 +44,10 @@ def test_a_fault_in_the_worker_thread_ends_the_run_with_one_sentence(tiny, monke
     scene = _with_photo(tiny)
     before = _data_counts()
 
-    def load_basis(progress=None, cancelled=None):
+    def load_planned(plan, progress=None, cancelled=None):
         raise fault
 
-    monkeypatch.setattr(prefs, "load_basis", load_basis)
+    monkeypatch.setattr(prefs, "load_planned", load_planned)
     run = runner.Run(scene, threaded=True)
     with pytest.raises(runner.RunFailed) as caught:
         _run_until_it_raises(run)

@@ -129,3 +129,26 @@ def test_a_cancelled_build_raises_and_caches_nothing(tmp_path):
     # the next run builds it as if nothing had happened
     B = basis.load_merl_folder(folder, cache_dir=cache, n_components=2)
     assert B.n_components == 2 and len(list(cache.glob("basis-*.npz"))) == 1
+
+
+def test_measured_basis_from_the_pack_is_cached_and_keyed_by_its_materials(tmp_path):
+    from brdf_reconstruct.core.brdf import metrics, nbrdf
+    from testkit.measured import PACK
+
+    if not PACK.is_file():
+        pytest.skip(f"{PACK} not found")
+    names = ["green-latex", "pink-fabric2", "gold-metallic-paint"]
+    cache = tmp_path / "cache"
+    B = basis.load_measured(PACK, names, cache_dir=cache, n_components=9)
+    assert B.info["n_columns"] == 9 and B.n_components == 9
+    again = basis.load_measured(PACK, names, cache_dir=cache, n_components=9)
+    assert again.fingerprint == B.fingerprint and len(list(cache.glob("basis-*.npz"))) == 1
+    other = basis.load_measured(PACK, names[:2], cache_dir=cache, n_components=6)
+    assert other.fingerprint != B.fingerprint
+    # a training material lies in the span of its own basis: projected, it renders
+    # as itself (the 9 columns are all kept)
+    pack = nbrdf.load(PACK)
+    truth = nbrdf.tabulate(pack, pack.index("pink-fabric2"))
+    assert metrics.sphere_error(B.project(truth), truth) < 0.02
+    with pytest.raises(ValueError, match="no material named velvet"):
+        basis.load_measured(PACK, ["velvet"], cache_dir=cache)
