@@ -221,9 +221,13 @@ def build(
         stage(0.8 + 0.1 * b / n_blocks, "building the BRDF basis (once): principal "
               f"components, block {b + 1}/{n_blocks}")
         r = rows[start : start + _BLOCK]
-        block = X[:, r].astype(np.float64)
-        m = np.median(block, axis=0)
-        x = np.log((block + EPS) / (m + EPS))
+        x = X[:, r].astype(np.float64)
+        # the median along contiguous rows (twice as fast as along the strided axis,
+        # the same values); the mapping in place (the same operations, no temporaries)
+        m = np.median(np.ascontiguousarray(x.T), axis=1)
+        x += EPS
+        x /= m + EPS
+        np.log(x, out=x)
         x_lo, x_hi = min(x_lo, x.min()), max(x_hi, x.max())
         mu = x.mean(axis=0)
         x -= mu
