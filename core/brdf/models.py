@@ -37,15 +37,6 @@ weighted mixture of materials is a list of weighted lobes):
   ``{"type": "conductor", "metal": one of METALS}``,
   ``{"type": "conductor", "n": rgb, "k": rgb}`` (exact) or
   ``{"type": "schlick", "f0": rgb}``.
-- ``{"type": "gtr", "alpha": a, "gamma": g, "fresnel": fresnel}``: the same
-  microfacet reflection with Burley's (2012) generalized Trowbridge-Reitz
-  distribution ``D = c / (1 + (a^2 - 1) cos_h^2)^g``, normalised; ``g`` in
-  [0.5, 4] sets the tail (g = 2 is GGX; smaller g, longer tails, as measured
-  metals and plastics have), ``a`` in (0, 0.99]. Its Smith masking has no
-  closed form, so ``Lambda`` is computed from its definition (the microsurface's
-  projected area ``cos (1 + Lambda)``, by stratified sampling of ``D cos``,
-  tabulated over the cosine once per (a, g)); GGX's, which Burley uses, gains
-  up to 28 % energy at grazing light for long tails.
 - ``{"type": "sheen", "color": rgb, "roughness": r}``: the "Charlie" sheen of
   Estevez & Kulla (2017), ``D(h) = (2 + 1/r) sin(theta_h)^(1/r) / (2 pi)``,
   r in [0.25, 1], with the Ashikhmin-Premoze visibility
@@ -74,7 +65,6 @@ Unknown keys and bad values raise ``ValueError`` naming the key path, e.g.
 
 from __future__ import annotations
 
-import functools
 import math
 from functools import cached_property
 
@@ -82,12 +72,10 @@ import numpy as np
 
 from .fresnel import METALS, fresnel_conductor, fresnel_dielectric, fresnel_schlick
 
-LOBE_TYPES = ("lambert", "oren_nayar", "ggx", "beckmann", "gtr", "sheen")
+LOBE_TYPES = ("lambert", "oren_nayar", "ggx", "beckmann", "sheen")
 DISTRIBUTIONS = ("ggx", "beckmann")
 ALPHA_MIN = 1e-4
 SHEEN_ROUGHNESS_MIN = 0.25
-GTR_GAMMA_RANGE = (0.5, 4.0)
-GTR_ALPHA_MAX = 0.99
 COS_MIN = 1e-9
 _TINY = 1e-300
 _BLOCK = 32768
@@ -119,21 +107,6 @@ def beckmann_ndf(cos_h, alpha):
     a2 = alpha * alpha
     # exp(-tan^2/a^2) / c^4 underflows to 0 before c^4 does, so no 0/0.
     return np.exp((c2 - 1.0) / (c2 * a2)) / (math.pi * a2 * c2 * c2)
-
-
-def gtr_ndf(cos_h, alpha, gamma):
-    """Generalized Trowbridge-Reitz D(h) (Burley 2012), in 1/sr; ``alpha`` in (0, 1),
-    ``gamma`` > 0 (2 = GGX). Normalised so that the integral of ``D cos_h`` over the
-    hemisphere is 1: with ``a2 = alpha^2``, ``c = (g - 1)(a2 - 1) / (pi (1 - a2^(1-g)))``,
-    and ``c = (a2 - 1) / (pi ln a2)`` at g = 1."""
-    a2 = alpha * alpha
-    c2 = np.asarray(cos_h, dtype=np.float64) ** 2
-    t = c2 * (a2 - 1.0) + 1.0
-    if abs(gamma - 1.0) < 1e-9:
-        c = (a2 - 1.0) / (math.pi * math.log(a2))
-    else:
-        c = (gamma - 1.0) * (a2 - 1.0) / (math.pi * (1.0 - a2 ** (1.0 - gamma)))
-    return c / t ** gamma
 
 
 def charlie_ndf(cos_h, roughness):
@@ -172,54 +145,6 @@ def _smith_mu(cos, alpha, distribution):
     return cos * (1.0 - _erfc_over_gauss(x) * gauss) + (alpha * _INV_SQRT_PI) * sin * gauss
 
 
-_GTR_TABLE = 257  # cosines of the tabulated GTR Smith term, 0 to 1
-_GTR_XI, _GTR_PHI = 1024, 128  # strata of the microfacet normals per cosine
-
-
-def gtr_sample_cos(xi, alpha, gamma):
-    """cos(theta_m) of microfacet normals distributed as ``D cos`` (GTR), by
-    inverting its CDF at ``xi`` in [0, 1) (Burley 2012, appendix B)."""
-    a2 = alpha * alpha
-    xi = np.asarray(xi, dtype=np.float64)
-    if abs(gamma - 1.0) < 1e-9:
-        c2 = (1.0 - a2 ** (1.0 - xi)) / (1.0 - a2)
-    else:
-        e = 1.0 - gamma
-        c2 = (1.0 - (a2 ** e * (1.0 - xi) + xi) ** (1.0 / e)) / (1.0 - a2)
-    return np.sqrt(np.clip(c2, 0.0, 1.0))
-
-
-@functools.lru_cache(maxsize=64)
-def _gtr_mu_table(alpha: float, gamma: float) -> np.ndarray:
-    """``mu(cos) = cos (1 + 2 Lambda(cos))`` of GTR on :data:`_GTR_TABLE` cosines from
-    0 to 1. The projected area of the microsurface onto a direction at ``cos`` is
-    ``A = E[max(0, w.m) / cos_m]`` over m ~ D cos, and ``A = cos (1 + Lambda)``, so
-    ``mu = 2 A - cos`` (finite at grazing, where Lambda is not)."""
-    # strata crowded towards xi = 1 (xi = 1 - (1 - u)^2, weight 2 (1 - u)): the tail of
-    # grazing microfacets, where max(0, w.m) / cos_m is largest (uniform strata
-    # underestimate mu by 1.2 %; these agree with GGX's closed form to 3e-5)
-    u = (np.arange(_GTR_XI) + 0.5) / _GTR_XI
-    weight = 2.0 * (1.0 - u) / _GTR_XI
-    cos_m = gtr_sample_cos(1.0 - (1.0 - u) ** 2, alpha, gamma)
-    sin_m = np.sqrt(1.0 - cos_m * cos_m)
-    cos_phi = np.cos((np.arange(_GTR_PHI) + 0.5) * (np.pi / _GTR_PHI))  # phi in (0, pi)
-    c = np.linspace(0.0, 1.0, _GTR_TABLE)
-    s = np.sqrt(1.0 - c * c)
-    area = np.empty(_GTR_TABLE)
-    for i in range(_GTR_TABLE):  # 257 small vectorised integrals, once per lobe
-        wm = s[i] * sin_m[:, None] * cos_phi[None, :] + c[i] * cos_m[:, None]
-        area[i] = weight @ (np.mean(np.maximum(wm, 0.0), axis=1) / np.maximum(cos_m, COS_MIN))
-    mu = np.maximum(2.0 * area - c, c)  # Lambda >= 0
-    mu.flags.writeable = False
-    return mu
-
-
-def gtr_smith_mu(cos, alpha, gamma):
-    """``cos (1 + 2 Lambda(cos))`` of GTR (see :func:`_smith_mu`), interpolated."""
-    table = _gtr_mu_table(float(alpha), float(gamma))
-    return np.interp(cos, np.linspace(0.0, 1.0, _GTR_TABLE), table)
-
-
 # --- shared geometry ------------------------------------------------------------
 
 
@@ -255,21 +180,15 @@ class _Geometry:
     def xy_dot(self):  # projections onto the tangent plane, dotted
         return self.wi[:, 0] * self.wo[:, 0] + self.wi[:, 1] * self.wo[:, 1]
 
-    def visibility(self, alpha, distribution, gamma=2.0):
+    def visibility(self, alpha, distribution):
         """Height-correlated ``G2 / (4 cos_i cos_o)`` (see :func:`_smith_mu`)."""
-        if distribution == "gtr":
-            mu_i = gtr_smith_mu(self.cos_i, alpha, gamma)
-            mu_o = gtr_smith_mu(self.cos_o, alpha, gamma)
-        else:
-            mu_i = _smith_mu(self.cos_i, alpha, distribution)
-            mu_o = _smith_mu(self.cos_o, alpha, distribution)
+        mu_i = _smith_mu(self.cos_i, alpha, distribution)
+        mu_o = _smith_mu(self.cos_o, alpha, distribution)
         return 0.5 / (self.cos_o * mu_i + self.cos_i * mu_o)
 
-    def ndf(self, alpha, distribution, gamma=2.0):
+    def ndf(self, alpha, distribution):
         if distribution == "ggx":
             return ggx_ndf(self.cos_h, alpha)
-        if distribution == "gtr":
-            return gtr_ndf(self.cos_h, alpha, gamma)
         return beckmann_ndf(self.cos_h, alpha)
 
 
@@ -288,9 +207,9 @@ def _fresnel_term(fresnel, cos):
     return fresnel_schlick(cos[:, None], fresnel["f0"])
 
 
-def _microfacet(g, alpha, distribution, fresnel, gamma=2.0):
+def _microfacet(g, alpha, distribution, fresnel):
     alpha = max(alpha, ALPHA_MIN)
-    dv = g.ndf(alpha, distribution, gamma) * g.visibility(alpha, distribution, gamma)
+    dv = g.ndf(alpha, distribution) * g.visibility(alpha, distribution)
     return dv[:, None] * _fresnel_term(fresnel, g.cos_d)
 
 
@@ -311,7 +230,7 @@ def _lobe(lobe, g):
         ci, co = g.cos_i, g.cos_o
         v = 0.25 / (ci + co - ci * co)
         return (charlie_ndf(g.cos_h, r) * v)[:, None] * lobe["color"]
-    return _microfacet(g, lobe["alpha"], kind, lobe["fresnel"], lobe.get("gamma", 2.0))
+    return _microfacet(g, lobe["alpha"], kind, lobe["fresnel"])
 
 
 def _material(material, g):
@@ -416,7 +335,6 @@ _LOBE_KEYS = {
     "oren_nayar": {"albedo", "sigma"},
     "ggx": {"alpha", "fresnel"},
     "beckmann": {"alpha", "fresnel"},
-    "gtr": {"alpha", "gamma", "fresnel"},
     "sheen": {"color", "roughness"},
 }
 
@@ -432,13 +350,6 @@ def _parse_lobe(lobe, path):
         out["albedo"] = _rgb(lobe, "albedo", path)
     if kind == "oren_nayar":
         out["sigma"] = _number(lobe, "sigma", path, lo=0.0, hi=math.pi / 2)
-    if kind == "gtr":
-        out["alpha"] = _number(lobe, "alpha", path, lo=0.0, hi=GTR_ALPHA_MAX, lo_open=True)
-        out["gamma"] = _number(lobe, "gamma", path, lo=GTR_GAMMA_RANGE[0],
-                               hi=GTR_GAMMA_RANGE[1])
-        if "fresnel" not in lobe:
-            _fail(path, "missing required key 'fresnel'")
-        out["fresnel"] = _parse_fresnel(lobe["fresnel"], f"{path}['fresnel']")
     if kind in DISTRIBUTIONS:
         out["alpha"] = _number(lobe, "alpha", path, lo=0.0, lo_open=True)
         if "fresnel" not in lobe:

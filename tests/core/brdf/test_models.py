@@ -4,7 +4,6 @@ Fresnel terms: test_fresnel.py)."""
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 import pytest
@@ -42,8 +41,6 @@ BECKMANN_PLASTIC = {"type": "beckmann", "alpha": 0.15,
                     "fresnel": {"type": "dielectric", "eta": [1.45, 1.5, 1.55]}}
 SCHLICK = {"type": "ggx", "alpha": 0.4, "fresnel": {"type": "schlick", "f0": [0.9, 0.6, 0.3]}}
 SHEEN = {"type": "sheen", "color": [0.8, 0.7, 0.9], "roughness": 0.4}
-GTR_TAIL = {"type": "gtr", "alpha": 0.1, "gamma": 1.2,
-            "fresnel": {"type": "conductor", "metal": "Cu"}}
 COAT = {"distribution": "ggx", "alpha": 0.05, "eta": 1.5, "weight": 0.8}
 
 ALL_MATERIALS = {
@@ -53,7 +50,6 @@ ALL_MATERIALS = {
     "beckmann_dielectric": _material(BECKMANN_PLASTIC),
     "ggx_schlick": _material(SCHLICK),
     "sheen": _material(SHEEN),
-    "gtr_long_tail": _material(GTR_TAIL),
     "coated_mixture": _material(dict(LAMBERT, weight=0.5), dict(GGX_METAL, weight=[0.2, 0.3, 0.4]),
                                 coat=COAT),
     "beckmann_coat": _material(OREN_NAYAR, coat=dict(COAT, distribution="beckmann")),
@@ -88,39 +84,6 @@ def test_ndf_projected_area_is_one(ndf, alpha):
     total = sum(integrate.quad(f, a, b, limit=200)[0]
                 for a, b in [(0, 5 * alpha), (5 * alpha, math.pi / 2)])
     assert total == pytest.approx(1.0, rel=1e-6)
-
-
-@pytest.mark.parametrize("gamma", [0.5, 1.0, 1.5, 2.0, 3.0, 4.0])
-@pytest.mark.parametrize("alpha", [0.05, 0.5, 0.99])
-def test_gtr_ndf_projected_area_is_one(alpha, gamma):
-    def f(theta):
-        return (float(models.gtr_ndf(math.cos(theta), alpha, gamma)) * math.cos(theta)
-                * math.sin(theta) * 2 * math.pi)
-
-    split = min(5 * alpha, math.pi / 4)
-    total = sum(integrate.quad(f, a, b, limit=200)[0]
-                for a, b in [(0, split), (split, math.pi / 2)])
-    assert total == pytest.approx(1.0, rel=1e-6)
-
-
-def test_gtr_at_gamma_two_is_ggx_and_smaller_gamma_has_the_longer_tail():
-    c = np.linspace(0.0, 1.0, 101)
-    np.testing.assert_allclose(models.gtr_ndf(c, 0.2, 2.0), models.ggx_ndf(c, 0.2), rtol=1e-12)
-    # far from the peak (cos_h = 0.5, 60 degrees) relative to the peak
-    tail = [models.gtr_ndf(0.5, 0.2, g) / models.gtr_ndf(1.0, 0.2, g) for g in (1.0, 1.5, 2.0)]
-    assert tail[0] > tail[1] > tail[2]
-
-
-@pytest.mark.parametrize("lobe, message", [
-    ({"type": "gtr", "alpha": 0.2, "gamma": 0.2, "fresnel": {"type": "schlick", "f0": 0.04}},
-     "['gamma']: must be >= 0.5"),
-    ({"type": "gtr", "alpha": 1.0, "gamma": 1.5, "fresnel": {"type": "schlick", "f0": 0.04}},
-     "['alpha']: must be <= 0.99"),
-    ({"type": "gtr", "alpha": 0.2, "gamma": 1.5}, "missing required key 'fresnel'"),
-])
-def test_a_bad_gtr_lobe_names_its_key(lobe, message):
-    with pytest.raises(ValueError, match=re.escape(message)):
-        models.validate_spec(_material(lobe))
 
 
 @pytest.mark.parametrize("roughness", [0.25, 0.5, 1.0])
@@ -227,8 +190,6 @@ ENERGY_CASES = {
                              "fresnel": {"type": "conductor", "metal": "Ag"}}),
     "aluminium_beckmann": _material({"type": "beckmann", "alpha": 0.5,
                                      "fresnel": {"type": "conductor", "metal": "Al"}}),
-    "silver_gtr_long_tail": _material({"type": "gtr", "alpha": 0.3, "gamma": 1.5,
-                                       "fresnel": {"type": "conductor", "metal": "Ag"}}),
     "white_sheen_at_roughness_bound": _material(
         {"type": "sheen", "color": 1.0, "roughness": models.SHEEN_ROUGHNESS_MIN}),
 }
@@ -327,31 +288,3 @@ def test_bad_directions_name_the_argument():
     bad[0, 0] = np.nan
     with pytest.raises(ValueError, match="wo"):
         models.evaluate(ALL_MATERIALS["lambert"], wi, bad)
-
-
-@pytest.mark.parametrize("alpha", [0.01, 0.2, 0.9])
-def test_gtr_smith_term_at_gamma_two_is_ggxs_closed_form(alpha):
-    """The GTR masking is computed from its definition (projected area by sampling);
-    at gamma = 2 that must be GGX's closed form, everywhere up to grazing."""
-    c = np.linspace(0.0, 1.0, 41)
-    # sampled to 3e-5 at the table's own cosines; linear interpolation between them
-    # (steps of 1/256) adds up to 4e-4 where mu bends, at cos ~ alpha for alpha = 0.01
-    np.testing.assert_allclose(models.gtr_smith_mu(c, alpha, 2.0),
-                               models._smith_mu(c, alpha, "ggx"), rtol=1e-3, atol=1e-6)
-    exact = np.linspace(0.0, 1.0, models._GTR_TABLE)
-    np.testing.assert_allclose(models.gtr_smith_mu(exact, alpha, 2.0),
-                               models._smith_mu(exact, alpha, "ggx"), rtol=1e-4, atol=1e-6)
-
-
-def test_gtr_sampling_inverts_its_cdf():
-    """cos_m drawn by gtr_sample_cos at xi has D-cos mass xi below it (the CDF by
-    quadrature of gtr_ndf, written independently)."""
-    for gamma in (1.0, 1.5, 3.0):
-        for xi in (0.1, 0.5, 0.9):
-            c = float(models.gtr_sample_cos(xi, 0.3, gamma))
-
-            def f(theta, g=gamma):
-                return (float(models.gtr_ndf(math.cos(theta), 0.3, g)) * math.cos(theta)
-                        * math.sin(theta) * 2 * math.pi)
-
-            assert integrate.quad(f, 0.0, math.acos(c))[0] == pytest.approx(xi, abs=1e-6)
