@@ -408,16 +408,31 @@ def _pack_key(path: pathlib.Path, names: tuple[str, ...]) -> str:
     return h.hexdigest()
 
 
-def _pack_and_names(pack_path, names):
-    from . import nbrdf
+def _pack_basis(pack_path, names, analytic: bool, cache_dir, n_components, progress,
+                cancelled) -> Basis:
+    """The pack's materials ``names`` (default: all), after the built-in analytic
+    database when ``analytic``; built by :func:`build` and cached under the pack's
+    content hash and the names (and the database's fingerprint)."""
+    from . import database, nbrdf
 
     pack = nbrdf.load(pack_path)
     chosen = tuple(pack.names if names is None else names)
-    for name in chosen:
-        pack.index(name)  # ValueError naming an unknown material
     if not chosen:
         raise ValueError("no measured materials chosen for the basis")
-    return pack, chosen
+    for name in chosen:
+        pack.index(name)  # ValueError naming an unknown material
+    specs = database.training_specs() if analytic else []
+    key = _pack_key(pathlib.Path(pack_path), chosen)
+    data = f"union:{database.database_fingerprint(specs)}:{key}" if analytic else f"measured:{key}"
+    fp = _fingerprint(data, n_components)
+
+    def tables():
+        yield from (database.make_table(s) for s in specs)
+        yield from (nbrdf.tabulate(pack, pack.index(n)) for n in chosen)
+
+    return _cached(fp, lambda: build(tables(), n_components, fp, progress=progress,
+                                     cancelled=cancelled, n_tables=len(specs) + len(chosen)),
+                   cache_dir)
 
 
 def load_measured(
@@ -431,16 +446,8 @@ def load_measured(
     """A basis from measured materials: the neural-BRDF pack's (``core.brdf.nbrdf``)
     materials ``names`` (default: all), tabulated on the MERL grid; cached under the
     pack's content hash and the names. progress, cancelled: as in :func:`build`."""
-    from . import nbrdf
-
-    pack, chosen = _pack_and_names(pack_path, None if names is None else tuple(names))
-    fp = _fingerprint("measured:" + _pack_key(pathlib.Path(pack_path), chosen), n_components)
-    return _cached(
-        fp,
-        lambda: build((nbrdf.tabulate(pack, pack.index(n)) for n in chosen), n_components, fp,
-                      progress=progress, cancelled=cancelled, n_tables=len(chosen)),
-        cache_dir,
-    )
+    return _pack_basis(pack_path, None if names is None else tuple(names), False, cache_dir,
+                       n_components, progress, cancelled)
 
 
 def load_union(
@@ -454,20 +461,5 @@ def load_union(
     """A basis from the built-in analytic database and the pack's measured materials
     ``names`` (default: all) together; cached like the two. progress, cancelled: as in
     :func:`build`."""
-    from . import database, nbrdf
-
-    pack, chosen = _pack_and_names(pack_path, None if names is None else tuple(names))
-    specs = database.training_specs()
-    fp = _fingerprint("union:" + database.database_fingerprint(specs) + ":"
-                      + _pack_key(pathlib.Path(pack_path), chosen), n_components)
-
-    def tables():
-        yield from (database.make_table(s) for s in specs)
-        yield from (nbrdf.tabulate(pack, pack.index(n)) for n in chosen)
-
-    return _cached(
-        fp,
-        lambda: build(tables(), n_components, fp, progress=progress, cancelled=cancelled,
-                      n_tables=len(specs) + len(chosen)),
-        cache_dir,
-    )
+    return _pack_basis(pack_path, None if names is None else tuple(names), True, cache_dir,
+                       n_components, progress, cancelled)
