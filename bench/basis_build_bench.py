@@ -1,19 +1,24 @@
-"""The built-in basis' first-use build: wall time, peak memory, how often its progress
+"""The shipped bases' first-use build: wall time, peak memory, how often the progress
 line moves, and how fast Esc (``cancelled()``) stops it.
 
-    .venv/bin/python bench/basis_build_bench.py [--cancel-after S]
+    .venv/bin/python bench/basis_build_bench.py [--cancel-after S] [--bases a,b]
 
-Builds the built-in basis into a throw-away cache folder (never the real cache),
-timing every ``progress(fraction, message)`` call of ``core.brdf.basis.build``; then
-a second build that is cancelled after ``--cancel-after`` seconds, timing the delay
-from the request to ``core.progress.Cancelled``. Writes
-``bench/results/basis_build.json``. About 2 to 3 minutes on the 2-core machine.
+For each basis (``measured``: the 80 materials of the shipped pack, the default;
+``analytic``: the 150 of the built-in database), in a fresh child process (so each
+peak memory is its own): a build into a throw-away cache folder (never the real
+cache), timing every ``progress(fraction, message)`` call of
+``core.brdf.basis.build_from``; then a second build that is cancelled after
+``--cancel-after`` seconds, timing the delay from the request to
+``core.progress.Cancelled``. Writes ``bench/results/basis_build.json``. About a
+minute and a half on the 2-core machine.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import pathlib
+import subprocess
 import sys
 import tempfile
 import threading
@@ -25,8 +30,10 @@ import numpy as np
 from brdf_reconstruct.core import progress as core_progress
 from brdf_reconstruct.core.brdf import basis
 
+LOADERS = {"measured": basis.load_measured, "analytic": basis.load_default}
 
-def _full_build(cache) -> dict:
+
+def _full_build(load, cache) -> dict:
     stamps, messages = [], []
     t0 = time.perf_counter()
 
@@ -34,7 +41,7 @@ def _full_build(cache) -> dict:
         stamps.append(time.perf_counter() - t0)
         messages.append((round(fraction, 4), message))
 
-    B = basis.load_default(cache_dir=cache, progress=progress)
+    B = load(cache_dir=cache, progress=progress)
     total = time.perf_counter() - t0
     gaps = np.diff([0.0, *stamps, total])
     fractions = [f for f, _ in messages]
@@ -49,7 +56,7 @@ def _full_build(cache) -> dict:
             "n_cells": B.info["n_cells"]}
 
 
-def _cancelled_build(cache, after: float) -> dict:
+def _cancelled_build(load, cache, after: float) -> dict:
     asked = threading.Event()
     t_ask = []
 
@@ -63,7 +70,7 @@ def _cancelled_build(cache, after: float) -> dict:
 
     threading.Thread(target=ask, daemon=True).start()
     try:
-        basis.load_default(cache_dir=cache, cancelled=cancelled)
+        load(cache_dir=cache, cancelled=cancelled)
         stopped = False
     except core_progress.Cancelled:
         stopped = True
@@ -73,22 +80,44 @@ def _cancelled_build(cache, after: float) -> dict:
             "files_left_in_cache": left}
 
 
+def _child(name: str, after: float) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        full = _full_build(LOADERS[name], pathlib.Path(tmp) / "full")
+        cancel = _cancelled_build(LOADERS[name], pathlib.Path(tmp) / "cancel", after)
+    return {"build": full, "cancel": cancel}
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--cancel-after", type=float, default=10.0,
+    parser.add_argument("--cancel-after", type=float, default=5.0,
                         help="seconds into the second build to ask it to stop")
+    parser.add_argument("--bases", default=",".join(LOADERS),
+                        help=f"comma-separated, of {', '.join(LOADERS)}")
+    parser.add_argument("--child", help=argparse.SUPPRESS)  # internal: one basis, JSON out
     args = parser.parse_args(argv)
-    info = common.machine("basis build, built-in analytic database")
-    with tempfile.TemporaryDirectory() as tmp:
-        full = _full_build(pathlib.Path(tmp) / "full")
-        cancel = _cancelled_build(pathlib.Path(tmp) / "cancel", args.cancel_after)
-    doc = {"machine": common.machine_end(info), "build": full, "cancel": cancel}
+    if args.child:
+        print(json.dumps(_child(args.child, args.cancel_after)))
+        return 0
+    names = [b for b in args.bases.split(",") if b]
+    if not names or set(names) - set(LOADERS):
+        print(f"error: --bases must name some of {', '.join(LOADERS)}", file=sys.stderr)
+        return 2
+    info = common.machine("basis build, the shipped bases, each in its own process")
+    doc = {"machine": info}
+    for name in names:
+        out = subprocess.run([sys.executable, __file__, "--child", name,
+                              "--cancel-after", str(args.cancel_after)],
+                             capture_output=True, text=True, check=True)
+        doc[name] = json.loads(out.stdout.strip().splitlines()[-1])
+        full, cancel = doc[name]["build"], doc[name]["cancel"]
+        print(f"{name}: {full['n_columns']} columns, build {full['seconds']:.1f} s, peak "
+              f"{full['peak_rss_gib']:.2f} GiB, {full['progress_calls']} progress calls, "
+              f"longest gap {full['max_gap_s']:.2f} s; cancel after {args.cancel_after:g} s "
+              f"stopped in {cancel['stop_delay_s']:.2f} s", flush=True)
+    common.machine_end(info)
     path = common.write_json(common.RESULTS / "basis_build.json", doc, arguments=vars(args))
-    print(f"build {full['seconds']:.0f} s, peak {full['peak_rss_gib']:.2f} GiB, "
-          f"{full['progress_calls']} progress calls, longest gap {full['max_gap_s']:.2f} s; "
-          f"cancel after {args.cancel_after:g} s stopped in {cancel['stop_delay_s']:.2f} s "
-          f"-> {path}")
+    print(f"-> {path}")
     return 0
 
 

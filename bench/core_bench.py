@@ -26,11 +26,13 @@ RESULTS = common.RESULTS
 SAMPLE_COUNTS = (1, 2, 5, 10, 20, 40)
 LIGHT = render.REFERENCE_LIGHT
 SPHERE_RES = 96
-# Alternatives to the defaults of reconstruct(), measured on the same optimal cells:
+# Alternatives to the defaults of reconstruct() (p = k, eta by evidence), measured on
+# the same optimal cells: Nielsen's p = min(n, k) ("n" stands for the sample count),
 # p chosen by evidence, and the reference code's fixed eta = 40 with p = min(n, k).
 VARIANTS_ON_OPTIMAL = (
+    ("optimal, p = min(n, k)", {"n_components": "n"}),
     ("optimal, p by evidence", {"select_components": True}),
-    ("optimal, eta = 40 (Nielsen)", {"eta": 40.0}),
+    ("optimal, eta = 40 (Nielsen)", {"eta": 40.0, "n_components": "n"}),
 )
 METHODS = ("optimal", "random") + tuple(m for m, _ in VARIANTS_ON_OPTIMAL)
 
@@ -121,7 +123,8 @@ def main(argv=None) -> dict:
             sample_times.setdefault(n, []).append(time.perf_counter() - t)
             rand = candidates[rng.choice(len(candidates), n, replace=False)]
             runs = [("optimal", opt, {}), ("random", rand, {})]
-            runs += [(method, opt, options) for method, options in VARIANTS_ON_OPTIMAL]
+            runs += [(method, opt, {k: n if v == "n" else v for k, v in options.items()})
+                     for method, options in VARIANTS_ON_OPTIMAL]
             for method, cells, options in runs:
                 cond = sampling.acquisition_condition(B.Q, B.rows_of(merl.linear_index(cells)))
                 for name, truth in truths.items():
@@ -185,7 +188,7 @@ def plot(report: dict, path: pathlib.Path) -> None:
         (axes[0], "median_sphere_rel_rmse", "sphere_rel_rmse", "rendered sphere, relative RMSE"),
         (axes[1], "median_brdf_log_rmse", "brdf_log_rmse", "BRDF cosine-weighted log RMSE"),
     ):
-        for method, style in zip(METHODS, ("o-", "s--", "^:", "v:"), strict=True):
+        for method, style in zip(METHODS, ("o-", "s--", "d-.", "^:", "v:"), strict=True):
             ax.plot(ns, [report["summary"][str(n)][method][key] for n in ns], style, label=method)
         ax.axhline(report["projection_floor_median"][floor_key], color="k", lw=0.8,
                    label="projection floor")

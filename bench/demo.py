@@ -106,9 +106,10 @@ def main(argv=None) -> int:
     (out / MARKER).write_text("made by bench/demo.py (make demo); replaced by the next run\n")
     t0 = time.perf_counter()
 
-    print("[1/4] the BRDF basis (built once and cached, about 2 min on a fresh machine)",
+    print("[1/4] the BRDF basis, measured (built once and cached, about 30 s on a fresh "
+          "machine)",
           flush=True)
-    B = basis.load_default(progress=lambda _f, message: print(f"      {message}", end="\r",
+    B = basis.load_measured(progress=lambda _f, message: print(f"      {message}", end="\r",
                                                               flush=True))
     print(f"      {B.n_components} components over {len(B.cells)} cells "
           f"({time.perf_counter() - t0:.0f} s)", flush=True)

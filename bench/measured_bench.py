@@ -14,18 +14,20 @@ saw it:
 - ``measured``: PCA of the 64 other measured materials (same mapping, k = 40);
 - ``union``: the analytic database and the 64 measured materials together.
 
-Per held-out material: reconstruction (``core.method.reconstruct``, exact
-values at the cells, no photos) from n = 6 and n = 20 condition-optimal cells
+Per held-out material: reconstruction (``core.method.reconstruct`` with its
+defaults: p = k, eta by evidence; exact values at the cells, no photos) from
+n = 6 and n = 20 condition-optimal cells
 and from 2000 random cells, seeds 0 and 1; score: rendered-sphere relative RMSE
 under four lights (``render.REFERENCE_LIGHT`` and ``metrics.SPHERE_LIGHTS``).
 Writes ``bench/results/measured.json`` and ``measured.png`` (``--quick``:
-``measured_quick.*``). About 25 minutes on the 2-core machine with analytic
-and measured (``--quick``: 2 folds, seed 0, 12 minutes on the loaded machine).
+``measured_quick.*``). About 40 minutes on the 2-core machine with the three
+bases (``--quick``: 2 folds, seed 0).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -56,9 +58,11 @@ def _spheres(table) -> np.ndarray:
     return np.stack([render.render_sphere(table, light, 96) for light in LIGHTS])
 
 
-def _score(B, truth, truth_spheres, cells) -> float:
-    """``metrics.sphere_error`` of the reconstruction, the truth rendered once per
-    material instead of once per reconstruction."""
+def _score(B, name, truth, truth_spheres, cells) -> float:
+    """``metrics.sphere_error`` of material ``name``'s reconstruction, the truth
+    rendered once per material instead of once per reconstruction; refused
+    (``measured.held_out``) if the basis was built from the material."""
+    measured.held_out(B, name)
     values = truth.reshape(3, -1)[:, merl.linear_index(cells)].T
     rec = reconstruct.reconstruct(B, cells, values)
     if not np.all(np.isfinite(rec.table[np.isfinite(truth)])):
@@ -88,7 +92,6 @@ def main(argv=None) -> int:
     if args.quick:
         folds = folds[:2]
     analytic = basis.load_default()
-    analytic_tables = None
     rows, builds = [], []
     t_all = time.perf_counter()
     for f, held in enumerate(folds):
@@ -96,22 +99,20 @@ def main(argv=None) -> int:
         built = {}
         if "analytic" in bases:
             built["analytic"] = analytic
+        measured_makers = [functools.partial(nbrdf.valid_values, pack, pack.index(n))
+                           for n in train]
         if "measured" in bases:
             t0 = time.perf_counter()
-            built["measured"] = basis.build((nbrdf.tabulate(pack, pack.index(n)) for n in train),
-                                            n_tables=len(train))
+            built["measured"] = basis.build_from(measured_makers, names=train)
             builds.append({"fold": f, "basis": "measured", "tables": len(train),
                            "seconds": time.perf_counter() - t0})
         if "union" in bases:
-            if analytic_tables is None:  # float32, generated once: 2.6 GB
-                analytic_tables = [database.make_table(s).astype(np.float32)
-                                   for s in database.training_specs()]
             t0 = time.perf_counter()
-            stream = [*analytic_tables]
-            built["union"] = basis.build(
-                iter(stream + [nbrdf.tabulate(pack, pack.index(n)) for n in train]),
-                n_tables=len(stream) + len(train))
-            builds.append({"fold": f, "basis": "union", "tables": len(stream) + len(train),
+            specs = database.training_specs()
+            makers = [functools.partial(database.valid_values, s) for s in specs]
+            built["union"] = basis.build_from(makers + measured_makers,
+                                              names=[s["name"] for s in specs] + train)
+            builds.append({"fold": f, "basis": "union", "tables": len(makers),
                            "seconds": time.perf_counter() - t0})
         cells = {(b, label, seed): _cells(B, kind, n, seed) for b, B in built.items()
                  for label, n, kind in SETTINGS for seed in seeds}
@@ -122,7 +123,7 @@ def main(argv=None) -> int:
                 rows.append({"fold": f, "material": name,
                              "class": measured.material_class(name), "basis": b,
                              "setting": label, "seed": seed,
-                             "sphere_rel_rmse": _score(built[b], truth, truth_spheres, c)})
+                             "sphere_rel_rmse": _score(built[b], name, truth, truth_spheres, c)})
         print(f"fold {f + 1}/{len(folds)} done ({time.perf_counter() - t_all:.0f} s)",
               flush=True)
         del built

@@ -18,12 +18,14 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 # each in its own process: they set their own thread pinning and Blender scenes
-SCRIPTS = ("core_bench.py", "basis_build_bench.py", "measured_bench.py", "reliable_bench.py",
+SCRIPTS = ("core_bench.py", "basis_build_bench.py", "measured_bench.py", "fig4_bench.py",
+           "reliable_bench.py",
            "cycles_kl_bench.py", "tradeoff.py", "extremes_bench.py", "bad_inputs.py",
            "scaling_bench.py", "sfm.py", "heldout_bench.py", "probe_bench.py",
            "camera_inputs_bench.py")
 # no reduced version
-NO_QUICK = ("cycles_kl_bench.py", "sfm.py", "camera_inputs_bench.py", "basis_build_bench.py")
+NO_QUICK = ("cycles_kl_bench.py", "sfm.py", "camera_inputs_bench.py", "basis_build_bench.py",
+            "fig4_bench.py")
 # arguments a script always gets (sfm.py prints only unless told where to write)
 ALWAYS = {"sfm.py": ["--out", str(HERE / "results" / "sfm.json")]}
 

@@ -306,8 +306,9 @@ class BRDFSettings(PropertyGroup):
                 "preferences"),
                ("ANALYTIC", "Analytic", "The built-in basis of 150 analytic materials (no "
                 "data license)"),
-               ("MEASURED", "Measured (MERL)", "80 measured MERL materials as neural BRDFs "
-                "(set the pack in the preferences); the MERL data are for research use"),
+               ("MEASURED", "Measured (MERL)", "80 measured MERL materials as neural BRDFs, "
+                "shipped (the default); the MERL data behind them are for research use: "
+                "for other use read MERL's terms first, or choose Analytic"),
                ("FOLDER", "MERL Folder", "Your own folder of MERL .binary files (Basis "
                 "Folder)")])
     basis_folder: StringProperty(name="Basis Folder", subtype="DIR_PATH", default="",

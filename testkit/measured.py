@@ -60,3 +60,18 @@ def folds(names, k: int = 5, seed: int = 0) -> list[list[str]]:
             out[position % k].append(str(n))
             position += 1
     return [sorted(f) for f in out]
+
+
+def held_out(basis, name: str) -> str:
+    """``name``, after checking that ``basis`` was not built from it (its
+    ``info["materials"]``): ValueError if it was, so a bench can never score a
+    material with a basis that saw it. A basis that does not list its materials
+    is refused too."""
+    materials = basis.info.get("materials")
+    if materials is None:
+        raise ValueError("the basis does not list its training materials, so it cannot "
+                         f"be shown that {name} is held out")
+    if name in materials:
+        raise ValueError(f"{name} is one of the basis' {len(materials)} training "
+                         "materials: a material is never scored by a basis built from it")
+    return name

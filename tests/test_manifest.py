@@ -86,6 +86,9 @@ def test_built_package_is_valid_and_lean(tmp_path):
     assert "__init__.py" in names
     assert "brdf_addon/__init__.py" in names
     assert "core/__init__.py" in names
+    # the default basis' measured materials and their terms travel with the code
+    assert "core/brdf/data/merl_nbrdf.npz" in names
+    assert "core/brdf/data/README.md" in names
     excluded = (".venv/", ".git/", ".ci/", "tests/", "bench/", "testkit/", "docs/", "__pycache__/")
     leaked = [n for n in names if any(n.startswith(e) or f"/{e}" in n for e in excluded)]
     assert not leaked, leaked

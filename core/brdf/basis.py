@@ -18,14 +18,17 @@ data and the settings, so a changed database always rebuilds.
 
 from __future__ import annotations
 
+import collections
 import dataclasses
+import functools
 import hashlib
 import json
 import os
 import pathlib
 import tempfile
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -35,8 +38,9 @@ from . import merl
 EPS = 1e-3  # Nielsen's eps in the log-relative mapping
 COSINE_CLIP = 0.01  # lower clip of the cosine map
 N_COMPONENTS = 40  # components kept by default: 1.1 M cells x 40 x 4 B = 175 MB cached
-FORMAT_VERSION = 1  # bump when the cache layout or the mapping changes
-_BLOCK = 1 << 16  # cells per block while building
+FORMAT_VERSION = 3  # bump when the cache layout or the mapping changes (3: float32 mapping,
+# info["materials"])
+_BLOCK_BYTES = 1 << 26  # a float64 copy of a block of cells while building: 64 MB
 
 
 @dataclasses.dataclass(frozen=True)
@@ -151,6 +155,68 @@ def settings_key(n_components: int) -> dict:
     }
 
 
+def _workers(workers: int | None) -> int:
+    return max(1, int(workers) if workers is not None else min(2, os.cpu_count() or 1))
+
+
+def _ordered(pool: ThreadPoolExecutor, fn, items, window: int):
+    """``fn(item)`` for each item in ``pool``, yielded in order, at most ``window``
+    running or waiting at once (bounds the memory of results not yet consumed). On
+    an exception in the consumer or in ``fn``, the waiting calls are dropped."""
+    pending: collections.deque = collections.deque()
+    try:
+        for item in items:
+            pending.append(pool.submit(fn, item))
+            if len(pending) >= window:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()
+    finally:
+        for future in pending:
+            future.cancel()
+
+
+class _Columns:
+    """The training data being gathered: one float32 row per channel, cosine-weighted
+    rho at the valid cells ``geo``; ``keep`` marks the cells every table measured."""
+
+    def __init__(self, n_tables: int | None):
+        self.geo = np.flatnonzero(merl.valid_cells())
+        self.cos = cosine_map()[self.geo].astype(np.float32)
+        self.keep = np.ones(len(self.geo), dtype=bool)
+        # filled in place when the number of tables is known (no second copy), else
+        # gathered and joined at the end
+        self.X = np.empty((3 * n_tables, len(self.geo)), np.float32) if n_tables else None
+        self.parts: list[np.ndarray] = []
+        self.n_done = 0
+
+    def values(self, i: int, table: np.ndarray) -> np.ndarray:
+        """Training table i, (3, 90, 90, 180) or (3, n_valid), as (3, n_valid)."""
+        table = np.asarray(table)
+        if table.shape == (3, len(self.geo)):
+            return table
+        if table.shape != (3, *merl.SHAPE):
+            raise ValueError(f"training table {i} has shape {table.shape}, not (3, 90, 90, 180)")
+        return table.reshape(3, -1)[:, self.geo]
+
+    def put(self, i: int, rho: np.ndarray) -> None:
+        if self.X is not None and i >= len(self.X) // 3:
+            raise ValueError(f"more training tables than the {len(self.X) // 3} announced")
+        self.keep &= np.all(np.isfinite(rho) & (rho >= 0), axis=0)
+        if self.X is not None:
+            np.multiply(rho, self.cos, out=self.X[3 * i : 3 * i + 3], casting="same_kind")
+        else:
+            self.parts.append((rho * self.cos).astype(np.float32))
+        self.n_done = i + 1
+
+    def matrix(self) -> np.ndarray:
+        if self.n_done == 0:
+            raise ValueError("no training tables given")
+        X = self.X[: 3 * self.n_done] if self.X is not None else np.concatenate(self.parts)
+        self.X, self.parts = None, []
+        return X
+
+
 def build(
     tables: Iterable[np.ndarray],
     n_components: int = N_COMPONENTS,
@@ -158,98 +224,147 @@ def build(
     progress: Progress | None = None,
     cancelled: CancelCheck | None = None,
     n_tables: int | None = None,
+    workers: int | None = None,
+    names: Sequence[str] | None = None,
 ) -> Basis:
-    """Build a basis from a stream of tables.
+    """Build a basis from a stream of tables, read one after the other.
 
-    tables: iterable of (3, 90, 90, 180) arrays in 1/sr (NaN = unmeasured); each
-    contributes three columns. Only cells above the horizon at their centre and
+    tables: iterable of (3, 90, 90, 180) arrays in 1/sr (NaN = unmeasured), or of
+    (3, n_valid) arrays at the cells ``merl.valid_cells()`` marks (in that order);
+    each contributes three columns. Only cells above the horizon at their centre and
     measured in every table are kept. n_components: k, capped by the number of
     columns. progress: optional ``progress(fraction, message)`` (``core.progress``),
-    called after every table and every block of cells, so at least once a second
-    on the built-in database; n_tables: the stream's length, for its fractions.
+    called after every table and every block of cells, so at least once a second on
+    the built-in database; n_tables: the stream's length, for its fractions.
     cancelled: optional callable checked as often; True raises
-    ``core.progress.Cancelled`` (nothing is kept).
-    Memory: one float32 value per (column, cell): 0.44 GB per 100 channels.
+    ``core.progress.Cancelled`` (nothing is kept). workers: threads for the
+    decomposition (default: up to 2, the cores). names: as in :func:`build_from`.
+    Memory: one float32 value per (column, cell), 0.44 GB per 100 channels, and
+    about 64 MB per worker.
     """
     t0 = time.perf_counter()
+    stage = _stage(progress, cancelled)
+    cols = _Columns(n_tables)
+    of = f"/{n_tables}" if n_tables else ""
+    for i, table in enumerate(tables):
+        cols.put(i, cols.values(i, table))
+        stage(0.8 * (cols.n_done / n_tables) if n_tables else 0.0,
+              f"building the BRDF basis (once): table {cols.n_done}{of}")
+    B = _decompose(cols, n_components, fingerprint, stage, _workers(workers), t0)
+    if names is not None:
+        if len(names) != cols.n_done:
+            raise ValueError(f"{len(names)} names for {cols.n_done} training tables")
+        B.info["materials"] = [str(x) for x in names]
+    return B
 
+
+def build_from(
+    makers: Sequence[Callable[[], np.ndarray]],
+    n_components: int = N_COMPONENTS,
+    fingerprint: str = "",
+    progress: Progress | None = None,
+    cancelled: CancelCheck | None = None,
+    workers: int | None = None,
+    names: Sequence[str] | None = None,
+) -> Basis:
+    """Build a basis from training tables made on demand, ``workers`` at once.
+
+    makers: one zero-argument callable per training material, returning its table
+    as :func:`build` takes it (numpy releases the GIL in its loops, so threads make
+    tables side by side). The basis is the same as ``build`` of the same tables, in
+    the same order. progress, cancelled: as in :func:`build`; a cancel waits for the
+    tables being made (a fraction of a second each). names: the materials' names,
+    one per maker, kept in ``info["materials"]`` so that a material is never scored
+    by a basis built from it.
+    """
+    if names is not None and len(names) != len(makers):
+        raise ValueError(f"{len(names)} names for {len(makers)} training tables")
+    t0 = time.perf_counter()
+    stage = _stage(progress, cancelled)
+    n = len(makers)
+    cols = _Columns(n)
+    w = _workers(workers)
+    with ThreadPoolExecutor(w) as pool:
+        made = _ordered(pool, lambda i: cols.values(i, makers[i]()), range(n), w + 1)
+        for i, rho in enumerate(made):
+            cols.put(i, rho)
+            stage(0.8 * (i + 1) / n, f"building the BRDF basis (once): table {i + 1}/{n}")
+    B = _decompose(cols, n_components, fingerprint, stage, w, t0)
+    if names is not None:
+        B.info["materials"] = [str(x) for x in names]
+    return B
+
+
+def _stage(progress, cancelled):
     def stage(fraction: float, message: str) -> None:
         check(cancelled)
         report(progress, fraction, message)
 
-    # reading or generating the tables is most of the time: 80 %, the passes 20 %
-    of_tables = f"/{n_tables}" if n_tables else ""
-    geo = np.flatnonzero(merl.valid_cells())
-    n_blocks = -(-len(geo) // _BLOCK)  # at most; the kept cells are fewer
-    cos = cosine_map()[geo].astype(np.float32)
-    # (n_cols, n_geo) float32, cosine-weighted: filled in place when the stream's
-    # length is known (no second copy at the end), else gathered and joined
-    X = np.empty((3 * n_tables, len(geo)), dtype=np.float32) if n_tables else None
-    columns: list[np.ndarray] = []
-    keep = np.ones(len(geo), dtype=bool)
-    n_done = 0
-    for i, table in enumerate(tables):
-        table = np.asarray(table)
-        if table.shape != (3, *merl.SHAPE):
-            raise ValueError(f"training table {i} has shape {table.shape}, not (3, 90, 90, 180)")
-        if X is not None and i >= n_tables:
-            raise ValueError(f"more training tables than the {n_tables} announced")
-        rho = table.reshape(3, -1)[:, geo]
-        keep &= np.all(np.isfinite(rho) & (rho >= 0), axis=0)
-        if X is not None:
-            np.multiply(rho, cos, out=X[3 * i : 3 * i + 3], casting="same_kind")
-        else:
-            columns.append((rho * cos).astype(np.float32))
-        n_done = i + 1
-        stage(0.8 * (n_done / n_tables) if n_tables else 0.0,
-              f"building the BRDF basis (once): table {n_done}{of_tables}")
-    if n_done == 0:
-        raise ValueError("no training tables given")
-    X = X[: 3 * n_done] if X is not None else np.concatenate(columns, axis=0)
-    del columns
+    return stage
+
+
+def _map_block(X: np.ndarray, r) -> tuple:
+    """Pass 1 on the cells ``r`` (a slice or an index array into X's columns):
+    median over the columns, log-relative mapping, mean, centring, written back in
+    place into X; returns (median, mean, min, max, Gram of the centred block)."""
+    x = X[:, r]  # float32, a copy for an index array, a view for a slice
+    # the median in float64 along contiguous rows (twice as fast as along the strided
+    # axis), on a copy it may reorder
+    m = np.median(x.T.astype(np.float64, order="C"), axis=1, overwrite_input=True)
+    x = np.array(x, dtype=np.float32, copy=True)
+    x += np.float32(EPS)
+    x /= (m + EPS).astype(np.float32)
+    np.log(x, out=x)
+    mu = x.mean(axis=0, dtype=np.float64)
+    x -= mu.astype(np.float32)
+    gram = (x @ x.T).astype(np.float64)
+    X[:, r] = x
+    return m, mu, float(x.min()), float(x.max()), gram
+
+
+def _decompose(cols: _Columns, n_components, fingerprint, stage, workers, t0) -> Basis:
+    """The mapping and the principal components of the gathered columns (Gram matrix
+    of the centred data, a few hundred columns square: ``D^T D = V S^2 V^T``, so
+    ``Q = U S = D V``)."""
+    X = cols.matrix()
     n_cols = X.shape[0]
-    rows = np.flatnonzero(keep)
+    rows = np.flatnonzero(cols.keep)
     if len(rows) < n_cols:
         raise ValueError(f"only {len(rows)} cells are measured in every training table")
+    contiguous = len(rows) == rows[-1] - rows[0] + 1
+    block = int(np.clip(_BLOCK_BYTES // (8 * n_cols), 4096, 1 << 16)) // 1024 * 1024
+    starts = range(0, len(rows), block)
+    n_blocks = len(starts)
+
+    def cells(start: int):
+        stop = min(start + block, len(rows))
+        return slice(rows[start], rows[stop - 1] + 1) if contiguous else rows[start:stop]
 
     median = np.empty(len(rows), dtype=np.float32)
     mean = np.empty(len(rows), dtype=np.float32)
     gram = np.zeros((n_cols, n_cols))
     x_lo, x_hi = np.inf, -np.inf
-    # Pass 1, per block of cells: median, mapping, mean, centring (in place), Gram.
-    for b, start in enumerate(range(0, len(rows), _BLOCK)):
-        stage(0.8 + 0.1 * b / n_blocks, "building the BRDF basis (once): principal "
-              f"components, block {b + 1}/{n_blocks}")
-        r = rows[start : start + _BLOCK]
-        x = X[:, r].astype(np.float64)
-        # the median along contiguous rows (twice as fast as along the strided axis,
-        # the same values); the mapping in place (the same operations, no temporaries)
-        m = np.median(np.ascontiguousarray(x.T), axis=1)
-        x += EPS
-        x /= m + EPS
-        np.log(x, out=x)
-        x_lo, x_hi = min(x_lo, x.min()), max(x_hi, x.max())
-        mu = x.mean(axis=0)
-        x -= mu
-        gram += x @ x.T
-        X[:, r] = x
-        median[start : start + len(r)] = m
-        mean[start : start + len(r)] = mu
-    # D^T D = V S^2 V^T, so Q = U S = D V.
+    with ThreadPoolExecutor(workers) as pool:
+        done = _ordered(pool, lambda s: _map_block(X, cells(s)), starts, workers + 1)
+        for b, (start, (m, mu, lo, hi, g)) in enumerate(zip(starts, done, strict=True)):
+            stop = min(start + block, len(rows))
+            median[start:stop], mean[start:stop] = m, mu
+            x_lo, x_hi = min(x_lo, lo), max(x_hi, hi)
+            gram += g  # in block order: the same sum whatever the threads did
+            stage(0.8 + 0.15 * (b + 1) / n_blocks, "building the BRDF basis (once): "
+                  f"principal components, block {b + 1}/{n_blocks}")
     eigval, V = np.linalg.eigh(gram)
     order = np.argsort(eigval)[::-1]
     eigval = np.clip(eigval[order], 0.0, None)
     V = V[:, order]
     k = int(min(n_components, n_cols))
-    Vk = V[:, :k].astype(np.float32)
+    Vk = np.ascontiguousarray(V[:, :k], dtype=np.float32)
     Q = np.empty((len(rows), k), dtype=np.float32)
-    for b, start in enumerate(range(0, len(rows), _BLOCK)):
-        stage(0.9 + 0.1 * b / n_blocks, "building the BRDF basis (once): basis vectors, "
-              f"block {b + 1}/{n_blocks}")
-        r = rows[start : start + _BLOCK]
-        Q[start : start + len(r)] = X[:, r].T @ Vk
-    del X
-    stage(1.0, "building the BRDF basis (once): done")
+    for b, start in enumerate(starts):
+        stop = min(start + block, len(rows))
+        Q[start:stop] = X[:, cells(start)].T @ Vk
+        stage(0.95 + 0.05 * (b + 1) / n_blocks, "building the BRDF basis (once): "
+              f"basis vectors, block {b + 1}/{n_blocks}")
     total = float(eigval.sum())
     info = {
         "n_columns": int(n_cols),
@@ -259,11 +374,11 @@ def build(
         "build_seconds": time.perf_counter() - t0,
     }
     return Basis(
-        cells=geo[rows].astype(np.int64),
+        cells=cols.geo[rows].astype(np.int64),
         Q=Q,
         mean=mean,
         median=median,
-        cosine=cos[rows],
+        cosine=cols.cos[rows],
         singular_values=np.sqrt(eigval[:k]),
         x_range=np.array([x_lo, x_hi]),
         fingerprint=fingerprint,
@@ -354,14 +469,10 @@ def load_default(
 
     specs = database.training_specs()
     fp = _fingerprint(database.database_fingerprint(specs), n_components)
-    return _cached(
-        fp,
-        lambda: build(
-            (database.make_table(s) for s in specs), n_components, fp, progress=progress,
-            cancelled=cancelled, n_tables=len(specs),
-        ),
-        cache_dir,
-    )
+    makers = [functools.partial(database.valid_values, s) for s in specs]
+    return _cached(fp, lambda: build_from(makers, n_components, fp, progress=progress,
+                                          cancelled=cancelled,
+                                          names=[s["name"] for s in specs]), cache_dir)
 
 
 def merl_folder_files(folder: str | os.PathLike) -> list[pathlib.Path]:
@@ -396,7 +507,7 @@ def load_merl_folder(
     return _cached(
         fp,
         lambda: build((merl.read(f) for f in files), n_components, fp, progress=progress,
-                      cancelled=cancelled, n_tables=len(files)),
+                      cancelled=cancelled, n_tables=len(files), names=[f.stem for f in files]),
         cache_dir,
     )
 
@@ -415,6 +526,7 @@ def _pack_basis(pack_path, names, analytic: bool, cache_dir, n_components, progr
     content hash and the names (and the database's fingerprint)."""
     from . import database, nbrdf
 
+    pack_path = nbrdf.BUNDLED_PACK if pack_path is None else pack_path
     pack = nbrdf.load(pack_path)
     chosen = tuple(pack.names if names is None else names)
     if not chosen:
@@ -426,32 +538,31 @@ def _pack_basis(pack_path, names, analytic: bool, cache_dir, n_components, progr
     data = f"union:{database.database_fingerprint(specs)}:{key}" if analytic else f"measured:{key}"
     fp = _fingerprint(data, n_components)
 
-    def tables():
-        yield from (database.make_table(s) for s in specs)
-        yield from (nbrdf.tabulate(pack, pack.index(n)) for n in chosen)
-
-    return _cached(fp, lambda: build(tables(), n_components, fp, progress=progress,
-                                     cancelled=cancelled, n_tables=len(specs) + len(chosen)),
-                   cache_dir)
+    makers = [functools.partial(database.valid_values, s) for s in specs]
+    makers += [functools.partial(nbrdf.valid_values, pack, pack.index(n)) for n in chosen]
+    names = [s["name"] for s in specs] + list(chosen)
+    return _cached(fp, lambda: build_from(makers, n_components, fp, progress=progress,
+                                          cancelled=cancelled, names=names), cache_dir)
 
 
 def load_measured(
-    pack_path: str | os.PathLike,
+    pack_path: str | os.PathLike | None = None,
     names: Iterable[str] | None = None,
     cache_dir: str | os.PathLike | None = None,
     n_components: int = N_COMPONENTS,
     progress: Progress | None = None,
     cancelled: CancelCheck | None = None,
 ) -> Basis:
-    """A basis from measured materials: the neural-BRDF pack's (``core.brdf.nbrdf``)
-    materials ``names`` (default: all), tabulated on the MERL grid; cached under the
-    pack's content hash and the names. progress, cancelled: as in :func:`build`."""
+    """A basis from measured materials: the neural-BRDF pack's (``core.brdf.nbrdf``;
+    default: the bundled ``nbrdf.BUNDLED_PACK``) materials ``names`` (default: all),
+    tabulated on the MERL grid, two at a time; cached under the pack's content hash
+    and the names. progress, cancelled: as in :func:`build`."""
     return _pack_basis(pack_path, None if names is None else tuple(names), False, cache_dir,
                        n_components, progress, cancelled)
 
 
 def load_union(
-    pack_path: str | os.PathLike,
+    pack_path: str | os.PathLike | None = None,
     names: Iterable[str] | None = None,
     cache_dir: str | os.PathLike | None = None,
     n_components: int = N_COMPONENTS,

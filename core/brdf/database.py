@@ -20,6 +20,7 @@ Two lists, both deterministic:
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from pathlib import Path
@@ -54,6 +55,21 @@ def make_table(spec):
     table = np.ascontiguousarray(rho.T).reshape(3, *merl.SHAPE)
     table[:, ~merl.valid_cells().reshape(merl.SHAPE)] = np.nan
     return table
+
+
+def valid_values(spec):
+    """A material spec at the valid cells only (``merl.valid_cells()``, in order):
+    (3, n_valid) float64 in 1/sr, what :func:`make_table` holds there, without
+    evaluating the cells below the horizon (a quarter of the grid)."""
+    wi, wo = _valid_directions()
+    return np.ascontiguousarray(models.evaluate(spec, wi, wo).T)
+
+
+@functools.lru_cache(maxsize=1)
+def _valid_directions():
+    valid = merl.valid_cells()
+    wi, wo = merl.cell_directions()
+    return wi[valid], wo[valid]
 
 
 def database_fingerprint(specs):

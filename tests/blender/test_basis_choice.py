@@ -16,28 +16,36 @@ from testkit.measured import PACK  # noqa: E402
 
 
 def _preferences(monkeypatch, **values):
-    fields = {"basis": "ANALYTIC", "measured_pack": "", "database_folder": "",
+    fields = {"basis": "MEASURED", "measured_pack": "", "database_folder": "",
               "cache_folder": "", "device": "CPU"} | values
     chosen = set(values)
     p = types.SimpleNamespace(**fields, is_property_set=lambda name: name in chosen)
     monkeypatch.setattr(prefs, "get", lambda: p)
 
 
-def test_the_default_is_the_analytic_basis(registered, monkeypatch):
+def test_the_default_is_the_measured_basis_from_the_shipped_pack(registered, monkeypatch):
+    from brdf_reconstruct.core.brdf import nbrdf
+
     monkeypatch.delenv(prefs.MEASURED_PACK_VARIABLE, raising=False)
-    assert prefs.basis_choice(registered) == ("ANALYTIC", "")
-    assert prefs.basis_choice(None) == ("ANALYTIC", "")
+    shipped = ("MEASURED", str(nbrdf.BUNDLED_PACK))
+    assert prefs.basis_choice(registered) == shipped
+    assert prefs.basis_choice(None) == shipped
+    # the shipped pack is the pack of the data folder, byte for byte
+    if PACK.is_file():
+        assert nbrdf.BUNDLED_PACK.read_bytes() == PACK.read_bytes()
 
 
-def test_the_measured_basis_without_its_pack_is_one_sentence(registered, monkeypatch):
-    monkeypatch.delenv(prefs.MEASURED_PACK_VARIABLE, raising=False)
+def test_a_measured_pack_that_is_not_there_is_one_sentence(registered, monkeypatch, tmp_path):
+    missing = tmp_path / "nowhere.npz"
+    monkeypatch.setenv(prefs.MEASURED_PACK_VARIABLE, str(missing))
     registered.brdf.basis = "MEASURED"
-    with pytest.raises(ValueError, match=r"^the measured basis needs the pack "
-                       r"merl_nbrdf\.npz: set Measured Pack in the preferences") as caught:
+    with pytest.raises(ValueError, match=r"^the measured basis needs a pack like "
+                       r"merl_nbrdf\.npz, and .*nowhere\.npz is not a file: correct "
+                       "Measured Pack in the preferences") as caught:
         prefs.basis_choice(registered)
     assert "\n" not in str(caught.value)
-    monkeypatch.setenv(prefs.MEASURED_PACK_VARIABLE, str(PACK))
     if PACK.is_file():
+        monkeypatch.setenv(prefs.MEASURED_PACK_VARIABLE, str(PACK))
         assert prefs.basis_choice(registered) == ("MEASURED", str(PACK))
 
 
@@ -56,16 +64,18 @@ def test_preferences_of_0_1_0_that_set_a_folder_keep_meaning_it(monkeypatch, tmp
     assert prefs.basis_choice() == ("FOLDER", str(tmp_path))
     _preferences(monkeypatch, basis="ANALYTIC", database_folder=str(tmp_path))  # chosen
     assert prefs.basis_choice() == ("ANALYTIC", "")
+    _preferences(monkeypatch, basis="MEASURED", database_folder=str(tmp_path))  # chosen
+    assert prefs.basis_choice()[0] == "MEASURED"
 
 
 def test_a_run_refuses_a_missing_basis_before_any_work(tiny, monkeypatch):
     from brdf_reconstruct.brdf_addon import photo_list
 
-    monkeypatch.delenv(prefs.MEASURED_PACK_VARIABLE, raising=False)
+    monkeypatch.setenv(prefs.MEASURED_PACK_VARIABLE, str(tiny["dir"] / "nowhere.npz"))
     scene = tiny["scene"]
     photo_list.add_photos(scene, [str(tiny["photo"])])
     scene.brdf.basis = "MEASURED"
-    with pytest.raises(ValueError, match="the measured basis needs the pack"):
+    with pytest.raises(ValueError, match="the measured basis needs a pack"):
         runner.Run(scene, threaded=False)
     assert not (tiny["dir"] / "out").exists()
 
@@ -77,8 +87,10 @@ def test_the_report_says_which_basis_was_used(tiny):
     added, _ = photo_list.add_photos(scene, [str(tiny["photo"])])
     added[0].irradiance = (BS.lit_irradiance(),) * 3
     report = runner.Run(scene, threaded=False, bake=False).run()
-    expected = basis.load_default(cache_dir=prefs.cache_dir())
-    assert report["basis"] == {"kind": "analytic", "source": "",
+    from brdf_reconstruct.core.brdf import nbrdf
+
+    expected = basis.load_measured(cache_dir=prefs.cache_dir())
+    assert report["basis"] == {"kind": "measured", "source": str(nbrdf.BUNDLED_PACK),
                                "fingerprint": expected.fingerprint,
                                "n_columns": expected.info["n_columns"],
                                "n_components": expected.n_components}

@@ -95,20 +95,90 @@ def test_lambert_family_reconstructs_from_one_sample(tmp_path):
     np.testing.assert_allclose(np.median(got), 0.3 / np.pi, rtol=0.05)
 
 
-def test_build_reports_progress_after_every_table_and_block():
-    from brdf_reconstruct.core.brdf.basis import _BLOCK
+def _block_count(n_cells, n_columns):
+    from brdf_reconstruct.core.brdf.basis import _BLOCK_BYTES
 
+    block = int(np.clip(_BLOCK_BYTES // (8 * n_columns), 4096, 1 << 16)) // 1024 * 1024
+    return -(-n_cells // block)
+
+
+def test_build_reports_progress_after_every_table_and_block():
     calls = []
     tables = [_lambert_table(a) for a in ([0.1, 0.2, 0.3], [0.5, 0.4, 0.3], [0.9, 0.9, 0.8])]
     B = basis.build(iter(tables), n_components=2, progress=lambda f, m: calls.append((f, m)),
                     n_tables=len(tables))
-    n_blocks = -(-B.info["n_cells"] // _BLOCK)
+    n_blocks = _block_count(B.info["n_cells"], B.info["n_columns"])
     fractions = [f for f, _ in calls]
-    # one call per table, one per block in each of the two passes, and the last one
-    assert len(calls) == len(tables) + 2 * n_blocks + 1
+    # one call per table and one per block in each of the two passes
+    assert len(calls) == len(tables) + 2 * n_blocks
     assert fractions == sorted(fractions) and fractions[-1] == 1.0 and fractions[0] > 0
     assert all("\n" not in m and "BRDF basis" in m for _, m in calls)
     assert calls[0][1].endswith("table 1/3")
+
+
+def _spec_tables():
+    from brdf_reconstruct.core.brdf import database
+
+    return [database.training_specs()[i] for i in (0, 40, 80, 120, 149)]
+
+
+def test_tables_made_in_threads_give_the_basis_of_the_stream():
+    """build_from (tables made two at a time, valid cells only) against build (full
+    tables, one after the other): the same basis, bit for bit, whatever the threads."""
+    import functools
+
+    from brdf_reconstruct.core.brdf import database
+
+    specs = _spec_tables()
+    streamed = basis.build((database.make_table(s) for s in specs), n_components=8,
+                           n_tables=len(specs), workers=1)
+    makers = [functools.partial(database.valid_values, s) for s in specs]
+    threaded = basis.build_from(makers, n_components=8, workers=2)
+    for name in ("cells", "Q", "mean", "median", "cosine", "singular_values", "x_range"):
+        np.testing.assert_array_equal(getattr(threaded, name), getattr(streamed, name), name)
+
+
+def test_the_build_matches_a_direct_svd_of_the_mapped_data():
+    """The Gram route against numpy's SVD of the centred, mapped training matrix
+    written out here (float64): the same singular values and, up to sign, the same
+    scaled directions Q = U S. The Gram matrix squares the singular values, so its
+    (float32 per block, float64 summed) precision is relative to the largest one."""
+    from brdf_reconstruct.core.brdf import database
+
+    tables = [database.make_table(s) for s in _spec_tables()]
+    B = basis.build(iter(tables), n_components=6, n_tables=len(tables))
+    valid = merl.valid_cells()
+    cos = basis.cosine_map()[valid]
+    X = np.concatenate([t.reshape(3, -1)[:, valid] for t in tables]) * cos  # (15, R)
+    m = np.median(X, axis=0)
+    x = np.log((X + basis.EPS) / (m + basis.EPS))
+    D = (x - x.mean(axis=0)).T  # (R, 15)
+    U, s, _ = np.linalg.svd(D, full_matrices=False)
+    np.testing.assert_allclose(B.singular_values, s[:6], rtol=0, atol=1e-6 * s[0])
+    Q = U[:, :6] * s[:6]
+    sign = np.sign(np.sum(Q * B.Q, axis=0))
+    np.testing.assert_allclose(B.Q, Q * sign, rtol=0, atol=1e-5 * np.abs(Q).max())
+    np.testing.assert_allclose(B.median, m, rtol=1e-6)
+
+
+def test_a_cancel_while_tables_are_made_in_threads_stops_at_the_next_table():
+    import functools
+
+    from brdf_reconstruct.core import progress
+    from brdf_reconstruct.core.brdf import database
+
+    made, seen = [], []
+
+    def make(spec):
+        made.append(spec["name"])
+        return database.valid_values(spec)
+
+    makers = [functools.partial(make, s) for s in database.training_specs()[:30]]
+    with pytest.raises(progress.Cancelled):
+        basis.build_from(makers, n_components=4, progress=lambda f, m: seen.append(m),
+                         cancelled=lambda: len(seen) >= 3, workers=2)
+    assert len(seen) == 3
+    assert len(made) <= 3 + 3  # the ones running or queued when Esc came, no more
 
 
 def test_a_cancelled_build_raises_and_caches_nothing(tmp_path):
@@ -152,3 +222,14 @@ def test_measured_basis_from_the_pack_is_cached_and_keyed_by_its_materials(tmp_p
     assert metrics.sphere_error(B.project(truth), truth) < 0.02
     with pytest.raises(ValueError, match="no material named velvet"):
         basis.load_measured(PACK, ["velvet"], cache_dir=cache)
+
+
+def test_a_basis_lists_the_materials_it_was_built_from():
+    tables = [_lambert_table(a) for a in ([0.1, 0.2, 0.3], [0.5, 0.4, 0.3])]
+    B = basis.build(iter(tables), n_components=2, n_tables=2, names=["dark", "light"])
+    assert B.info["materials"] == ["dark", "light"]
+    assert "materials" not in basis.build(iter(tables), n_components=2).info
+    with pytest.raises(ValueError, match="3 names for 2 training tables"):
+        basis.build(iter(tables), n_components=2, names=["a", "b", "c"])
+    with pytest.raises(ValueError, match="1 names for 2 training tables"):
+        basis.build_from([lambda t=t: t for t in tables], n_components=2, names=["a"])

@@ -113,3 +113,34 @@ def test_folds_cover_the_pack_once_and_spread_each_class():
     for kind in measured.CLASSES:
         counts = [sum(measured.material_class(n) == kind for n in f) for f in folds]
         assert max(counts) - min(counts) <= 1, (kind, counts)
+
+
+@needs_pack
+def test_a_material_is_refused_as_a_test_case_of_a_basis_built_with_it(tmp_path):
+    """The bench's guard: a basis lists the materials it was built from, and scoring
+    one of them with it is refused; a held-out one passes; a basis that cannot say
+    what it saw is refused too."""
+    import dataclasses
+
+    from brdf_reconstruct.core.brdf import basis
+    from testkit import measured
+
+    train = ["green-latex", "pink-fabric2", "gold-metallic-paint"]
+    B = basis.load_measured(PACK, train, cache_dir=tmp_path, n_components=6)
+    assert B.info["materials"] == train
+    again = basis.load_measured(PACK, train, cache_dir=tmp_path, n_components=6)  # cached
+    assert again.info["materials"] == train
+    with pytest.raises(ValueError, match="pink-fabric2 is one of the basis' 3 training "
+                       "materials"):
+        measured.held_out(B, "pink-fabric2")
+    assert measured.held_out(B, "aluminium") == "aluminium"
+    anonymous = dataclasses.replace(B, info={k: v for k, v in B.info.items()
+                                             if k != "materials"})
+    with pytest.raises(ValueError, match="does not list its training materials"):
+        measured.held_out(anonymous, "aluminium")
+    # the cross-validation folds never pair a material with a basis that saw it
+    pack = nbrdf.load(PACK)
+    for held in measured.folds(pack.names, k=5):
+        names = [n for n in pack.names if n not in held]
+        fake = dataclasses.replace(B, info={**B.info, "materials": names})
+        assert all(measured.held_out(fake, n) == n for n in held)

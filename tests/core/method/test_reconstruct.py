@@ -58,7 +58,12 @@ def test_single_sample_and_fewer_samples_than_components(default_basis, heldout_
         cells = sampling.optimal_cells(B, _all_cells(B), n, 0)
         rec = reconstruct.reconstruct(B, cells, _observe(truth, cells))
         assert np.all(np.isfinite(rec.table)) and np.all(rec.table >= 0)
-        assert np.all(rec.n_components <= n)
+        # the default uses every component, the PCA prior holding the ones the n
+        # samples cannot pin down; Nielsen's p = min(n, k) on request
+        assert list(rec.n_components) == [B.n_components] * 3
+        nielsen = reconstruct.reconstruct(B, cells, _observe(truth, cells), n_components=n)
+        assert list(nielsen.n_components) == [n] * 3
+        assert np.all(np.isfinite(nielsen.table)) and np.all(nielsen.table >= 0)
         assert rec.residuals.shape == (n, 3)
         assert np.all(rec.eta > 0) and np.all(np.isfinite(rec.log_evidence))
 
