@@ -21,10 +21,19 @@ os.environ.setdefault("BRDF_RECONSTRUCT_CACHE", str(CACHE))
 
 @pytest.fixture(scope="session")
 def default_basis():
-    """The built-in basis (built on first use, about two minutes; cached in .cache/)."""
+    """The built-in analytic basis (built on first use, about 40 s; cached in .cache/)."""
     from brdf_reconstruct.core.brdf import basis
 
     return basis.load_default(cache_dir=CACHE)
+
+
+@pytest.fixture(scope="session")
+def measured_basis():
+    """The product's default basis: the shipped pack's 80 measured materials (built on
+    first use, about 25 s; cached in .cache/)."""
+    from brdf_reconstruct.core.brdf import basis
+
+    return basis.load_measured(cache_dir=CACHE)
 
 
 @pytest.fixture(scope="session")

@@ -415,7 +415,7 @@ def no_blend_job(tmp_path_factory) -> Path:
 
 
 def test_blender_python_route_runs_the_installed_extension(archive, no_blend_job,
-                                                           default_basis, tmp_path):
+                                                           measured_basis, tmp_path):
     """`blender --background --python <installed>/brdf_addon/batch.py -- job.toml` on a
     job without a .blend (emulated: no Blender binary here, see the module's
     docstring): exit 0 with the outputs; the extension, its repositories and its
@@ -427,7 +427,8 @@ def test_blender_python_route_runs_the_installed_extension(archive, no_blend_job
     home.mkdir()
     pref_cache, env_cache = tmp_path / "pref_cache", tmp_path / "env_cache"
     pref_cache.mkdir()
-    name = f"basis-{default_basis.fingerprint[:24]}.npz"  # basis._cached's file name
+    # the product's default basis, measured (basis._cached's file name)
+    name = f"basis-{measured_basis.fingerprint[:24]}.npz"
     (pref_cache / name).symlink_to(Path(os.environ["BRDF_RECONSTRUCT_CACHE"]) / name)
     env = {
         k: v for k, v in os.environ.items() if not k.startswith(("BLENDER_USER_", "PYTHON", "XDG_"))
