@@ -38,8 +38,8 @@ from . import merl
 EPS = 1e-3  # Nielsen's eps in the log-relative mapping
 COSINE_CLIP = 0.01  # lower clip of the cosine map
 N_COMPONENTS = 40  # components kept by default: 1.1 M cells x 40 x 4 B = 175 MB cached
-FORMAT_VERSION = 3  # bump when the cache layout or the mapping changes (3: float32 mapping,
-# info["materials"])
+FORMAT_VERSION = 4  # bump when the cache layout or the mapping changes (3: float32 mapping,
+# info["materials"]; 4: x_range of the mapped data again, not of the centred data)
 _BLOCK_BYTES = 1 << 26  # a float64 copy of a block of cells while building: 64 MB
 
 
@@ -250,12 +250,10 @@ def build(
         cols.put(i, cols.values(i, table))
         stage(0.8 * (cols.n_done / n_tables) if n_tables else 0.0,
               f"building the BRDF basis (once): table {cols.n_done}{of}")
-    B = _decompose(cols, n_components, fingerprint, stage, _workers(workers), t0)
-    if names is not None:
-        if len(names) != cols.n_done:
-            raise ValueError(f"{len(names)} names for {cols.n_done} training tables")
-        B.info["materials"] = [str(x) for x in names]
-    return B
+    if names is not None and len(names) != cols.n_done:
+        raise ValueError(f"{len(names)} names for {cols.n_done} training tables")
+    return _named(_decompose(cols, n_components, fingerprint, stage, _workers(workers), t0),
+                  names)
 
 
 def build_from(
@@ -289,7 +287,11 @@ def build_from(
         for i, rho in enumerate(made):
             cols.put(i, rho)
             stage(0.8 * (i + 1) / n, f"building the BRDF basis (once): table {i + 1}/{n}")
-    B = _decompose(cols, n_components, fingerprint, stage, w, t0)
+    return _named(_decompose(cols, n_components, fingerprint, stage, w, t0), names)
+
+
+def _named(B: Basis, names) -> Basis:
+    """``B`` with its training materials' names in ``info["materials"]`` (if given)."""
     if names is not None:
         B.info["materials"] = [str(x) for x in names]
     return B
@@ -315,11 +317,12 @@ def _map_block(X: np.ndarray, r) -> tuple:
     x += np.float32(EPS)
     x /= (m + EPS).astype(np.float32)
     np.log(x, out=x)
+    lo, hi = float(x.min()), float(x.max())  # of the mapped data, before centring
     mu = x.mean(axis=0, dtype=np.float64)
     x -= mu.astype(np.float32)
     gram = (x @ x.T).astype(np.float64)
     X[:, r] = x
-    return m, mu, float(x.min()), float(x.max()), gram
+    return m, mu, lo, hi, gram
 
 
 def _decompose(cols: _Columns, n_components, fingerprint, stage, workers, t0) -> Basis:

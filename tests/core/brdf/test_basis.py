@@ -159,6 +159,8 @@ def test_the_build_matches_a_direct_svd_of_the_mapped_data():
     sign = np.sign(np.sum(Q * B.Q, axis=0))
     np.testing.assert_allclose(B.Q, Q * sign, rtol=0, atol=1e-5 * np.abs(Q).max())
     np.testing.assert_allclose(B.median, m, rtol=1e-6)
+    # the clipping range of from_mapped is the mapped data's, not the centred data's
+    np.testing.assert_allclose(B.x_range, [x.min(), x.max()], rtol=1e-5)
 
 
 def test_a_cancel_while_tables_are_made_in_threads_stops_at_the_next_table():
