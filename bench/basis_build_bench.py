@@ -99,9 +99,8 @@ def main(argv=None) -> int:
     if args.child:
         print(json.dumps(_child(args.child, args.cancel_after)))
         return 0
-    names = [b for b in args.bases.split(",") if b]
-    if not names or set(names) - set(LOADERS):
-        print(f"error: --bases must name some of {', '.join(LOADERS)}", file=sys.stderr)
+    names = common.listed(args.bases, LOADERS, "--bases")
+    if names is None:
         return 2
     info = common.machine("basis build, the shipped bases, each in its own process")
     doc = {"machine": info}

@@ -219,3 +219,37 @@ def run_batch(job) -> tuple[subprocess.CompletedProcess, float, float]:
     done = subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch",
                            str(job)], capture_output=True, text=True, env=dict(os.environ))
     return done, time.perf_counter() - t0, load
+
+
+def listed(value: str, allowed, flag: str) -> list[str] | None:
+    """The comma-separated names of a command-line ``flag``, all of ``allowed``; None
+    after one ``error:`` line on stderr when it names none or another."""
+    names = [n for n in value.split(",") if n]
+    if not names or set(names) - set(allowed):
+        print(f"error: {flag} must name some of {', '.join(allowed)}", file=sys.stderr)
+        return None
+    return names
+
+
+def measured_pack_or_error():
+    """The measured pack (``testkit.measured.PACK``) loaded, or None after one
+    ``error:`` line when it is not there."""
+    from brdf_reconstruct.core.brdf import nbrdf
+    from testkit import measured
+
+    if not measured.PACK.is_file():
+        print(f"error: {measured.PACK} not found (set BRDF_SHARED_DATA)", file=sys.stderr)
+        return None
+    return nbrdf.load(measured.PACK)
+
+
+def measured_basis_without(pack, held):
+    """The measured basis of the pack's materials not in ``held`` (a cross-validation
+    fold's), listing them in ``info["materials"]``."""
+    import functools
+
+    from brdf_reconstruct.core.brdf import basis, nbrdf
+
+    train = [n for n in pack.names if n not in held]
+    makers = [functools.partial(nbrdf.valid_values, pack, pack.index(n)) for n in train]
+    return basis.build_from(makers, names=train)

@@ -29,7 +29,6 @@ minutes an object on the 2-core machine (plus the G-buffers once).
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import pathlib
 import sys
@@ -49,31 +48,23 @@ DOCS = pathlib.Path(__file__).resolve().parent.parent / "docs"
 FIGURES = {"bunny": DOCS / "fig4_measured.png", "spot": DOCS / "fig4_measured_spot.png"}
 
 
-def _fold_basis(pack, name: str):
-    """The measured basis of the fold that holds ``name`` out."""
-    (held,) = [f for f in measured.folds(pack.names, k=5) if name in f]
-    train = [n for n in pack.names if n not in held]
-    makers = [functools.partial(nbrdf.valid_values, pack, pack.index(n)) for n in train]
-    return basis.build_from(makers, names=train)
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seed", type=int, default=0, help="noise and trials (default 0)")
     parser.add_argument("--objects", default="bunny,spot", help="of bunny, spot")
     args = parser.parse_args(argv)
-    objects = [o for o in args.objects.split(",") if o]
-    if not objects or set(objects) - set(FIGURES):
-        print(f"error: --objects must name some of {', '.join(FIGURES)}", file=sys.stderr)
+    objects = common.listed(args.objects, FIGURES, "--objects")
+    if objects is None:
         return 2
-    if not measured.PACK.is_file():
-        print(f"error: {measured.PACK} not found (set BRDF_SHARED_DATA)", file=sys.stderr)
+    pack = common.measured_pack_or_error()
+    if pack is None:
         return 1
     info = common.machine("the paper's Fig. 4 materials on degraded captures")
-    pack = nbrdf.load(measured.PACK)
     analytic = basis.load_default()
-    bases = {name: _fold_basis(pack, name) for name in MATERIALS}
+    folds = measured.folds(pack.names, k=5)
+    bases = {name: common.measured_basis_without(pack, next(f for f in folds if name in f))
+             for name in MATERIALS}
     doc = {"objects": {}}
     for obj in objects:
         arrays = capture_arrays.gbuffers(mesh=None if obj == "bunny"

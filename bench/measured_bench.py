@@ -78,16 +78,14 @@ def main(argv=None) -> int:
     parser.add_argument("--bases", default=",".join(BASES),
                         help=f"comma-separated, of {', '.join(BASES)}")
     args = parser.parse_args(argv)
-    bases = [b for b in args.bases.split(",") if b]
-    if set(bases) - set(BASES) or not bases:
-        print(f"error: --bases must name some of {', '.join(BASES)}", file=sys.stderr)
+    bases = common.listed(args.bases, BASES, "--bases")
+    if bases is None:
         return 2
-    if not measured.PACK.is_file():
-        print(f"error: {measured.PACK} not found (set BRDF_SHARED_DATA)", file=sys.stderr)
+    pack = common.measured_pack_or_error()
+    if pack is None:
         return 1
     info = common.machine("bases against measured materials, cross-validated")
     seeds = (0,) if args.quick else (0, 1)
-    pack = nbrdf.load(measured.PACK)
     folds = measured.folds(pack.names, k=args.folds)
     if args.quick:
         folds = folds[:2]
@@ -103,7 +101,7 @@ def main(argv=None) -> int:
                            for n in train]
         if "measured" in bases:
             t0 = time.perf_counter()
-            built["measured"] = basis.build_from(measured_makers, names=train)
+            built["measured"] = common.measured_basis_without(pack, held)
             builds.append({"fold": f, "basis": "measured", "tables": len(train),
                            "seconds": time.perf_counter() - t0})
         if "union" in bases:
