@@ -210,14 +210,17 @@ def ensure_capture(material: str, views: int = DEMO_CAPTURE["views"],
     return folder, time.perf_counter() - t0
 
 
-def run_batch(job) -> tuple[subprocess.CompletedProcess, float, float]:
+def run_batch(job, env: dict | None = None) -> tuple[subprocess.CompletedProcess, float,
+                                                   float]:
     """``python -m brdf_reconstruct.brdf_addon.batch job`` in a fresh subprocess, as a
-    user runs it (output captured as text). Returns (the finished process, its wall
-    seconds, the 1-minute load average at its start)."""
+    user runs it (output captured as text), with ``env`` added to this process's
+    environment. Returns (the finished process, its wall seconds, the 1-minute load
+    average at its start)."""
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
     done = subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch",
-                           str(job)], capture_output=True, text=True, env=dict(os.environ))
+                           str(job)], capture_output=True, text=True,
+                          env={**os.environ, **(env or {})})
     return done, time.perf_counter() - t0, load
 
 
@@ -253,3 +256,74 @@ def measured_basis_without(pack, held):
     train = [n for n in pack.names if n not in held]
     makers = [functools.partial(nbrdf.valid_values, pack, pack.index(n)) for n in train]
     return basis.build_from(makers, names=train)
+
+
+# ------------------------------------------------------------ held-out materials
+
+
+def is_measured(name: str) -> bool:
+    """True for a material of the measured pack, False for an analytic held-out one
+    (``heldout_*`` of ``core.brdf.database.heldout_specs``)."""
+    return not name.startswith("heldout_")
+
+
+def heldout_table(name: str):
+    """The true table (3, 90, 90, 180) of a held-out material: an analytic one by its
+    spec (:func:`heldout_spec`) or a measured one of the pack (``testkit.measured.PACK``),
+    tabulated."""
+    from brdf_reconstruct.core.brdf import database, nbrdf
+    from testkit import measured
+
+    if not is_measured(name):
+        return database.make_table(heldout_spec(name))
+    pack = nbrdf.load(measured.PACK)
+    return nbrdf.tabulate(pack, pack.index(name))
+
+
+def default_basis_without(name: str, n_components: int | None = None):
+    """The shipped default basis (measured) that has not seen ``name``: for an
+    analytic held-out material the whole bundled pack (``basis.load_measured()``,
+    which holds no analytic material); for a measured one the pack's materials
+    outside the cross-validation fold that holds it (``measured.fold_training``,
+    5 folds; built once and cached like every basis), with ``n_components``
+    (default ``basis.N_COMPONENTS``). Checked with ``measured.held_out``."""
+    from brdf_reconstruct.core.brdf import basis, nbrdf
+    from testkit import measured
+
+    k = basis.N_COMPONENTS if n_components is None else n_components
+    if not is_measured(name):
+        B = basis.load_measured(n_components=k)
+    else:
+        names = nbrdf.load(measured.PACK).names
+        B = basis.load_measured(measured.PACK, names=measured.fold_training(names, name),
+                                n_components=k)
+    measured.held_out(B, name)
+    return B
+
+
+def pack_without(name: str, folder) -> pathlib.Path:
+    """A pack file in ``folder`` holding the networks of ``measured.fold_training``
+    for ``name`` (the pack's materials outside the fold that holds it out): given to
+    a batch run as ``$BRDF_MEASURED_PACK``, the product's own override, so that the
+    run's measured basis never saw ``name``. Written once (temporary name, then
+    renamed)."""
+    import dataclasses
+
+    import numpy as np
+
+    from brdf_reconstruct.core.brdf import nbrdf
+    from testkit import measured
+
+    pack = nbrdf.load(measured.PACK)
+    train = measured.fold_training(pack.names, name)
+    index = [pack.index(n) for n in train]
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"pack_without_fold_of_{name}.npz"
+    if not path.is_file():
+        tmp = folder / f".{path.stem}.tmp.npz"
+        layers = {f.name: getattr(pack, f.name)[index] for f in dataclasses.fields(pack)
+                  if f.name != "names"}
+        np.savez(tmp, names=np.array(train), **layers)
+        os.replace(tmp, path)
+    return path

@@ -1,6 +1,9 @@
 """Ours against a Mitsuba 3 Principled fit on the 12 held-out materials (issue 5).
 
-For every held-out material (``core.brdf.database.heldout_specs``):
+For every held-out material: the 12 analytic ones (``core.brdf.database.heldout_specs``)
+and one measured material per class (``testkit.measured.one_per_class``, drawn with
+seed 0), the measured ones through a pack without their cross-validation fold
+(``common.pack_without``, given to the batch as ``$BRDF_MEASURED_PACK``):
 
 1. The bunny capture of the demo (``testkit/capture.py``: 6 views, 3 lit photos,
    240 x 180, seed 0), generated once into
@@ -51,9 +54,11 @@ NOTE = ("shared with other jobs: wall times are noisy; load_1min is the 1-minute
         "average at each run's start")
 
 
-def run_ours(folder: pathlib.Path) -> dict:
-    """Run the batch entry on the Balanced job; table, wall time and the report's
-    stage timings (seconds)."""
+def run_ours(folder: pathlib.Path, material: str) -> dict:
+    """Run the batch entry on the Balanced job with the default (measured) basis; for
+    a measured material, ``$BRDF_MEASURED_PACK`` names a pack without the material's
+    cross-validation fold (``common.pack_without``), so the basis never saw it.
+    Returns the table, wall time and the report's stage timings (seconds)."""
     from brdf_reconstruct.core.brdf import merl
     from testkit import capture
 
@@ -61,13 +66,20 @@ def run_ours(folder: pathlib.Path) -> dict:
     out = folder / "out"
     if out.exists():
         shutil.rmtree(out)
-    done, wall, load = common.run_batch(job)
+    env = None
+    if common.is_measured(material):
+        env = {"BRDF_MEASURED_PACK": str(common.pack_without(material, folder.parent))}
+    done, wall, load = common.run_batch(job, env=env)
     if done.returncode != 0:
         raise RuntimeError(f"batch failed on {job}: {done.stderr.strip()[-500:]}")
     report = json.loads((out / "report.json").read_text())
+    if env and report.get("basis", {}).get("source") != env["BRDF_MEASURED_PACK"]:
+        raise RuntimeError(f"the batch on {job} did not use the fold's pack: "
+                           f"{report.get('basis')}")
     region = report["regions"][0]
     return {"table": merl.read(out / "brdf_0.binary"), "wall_s": wall, "load_1min": load,
             "timings_s": report["timings_s"], "preset": report["settings"]["preset"],
+            "basis": report.get("basis"),
             "status": region["status"], "counts": region.get("counts")}
 
 
@@ -131,7 +143,9 @@ def plot(results: dict, path: pathlib.Path) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--materials", help="comma-separated held-out names (default: all 12)")
+    parser.add_argument("--materials", help="comma-separated held-out names: analytic "
+                        "(heldout_*) or measured (of the pack); default: the 12 analytic "
+                        "and one measured material per class (measured.one_per_class)")
     parser.add_argument("--quick", action="store_true",
                         help="two materials and a 20-step fit; writes heldout_quick.*")
     parser.add_argument("--iterations", type=int, default=None,
@@ -142,17 +156,21 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     from brdf_reconstruct.core.brdf import database, merl, metrics
-    from testkit import mitsuba_peer
+    from testkit import measured, mitsuba_peer
 
-    every = [s["name"] for s in database.heldout_specs()]
+    pack = common.measured_pack_or_error()
+    if pack is None:
+        return 1
+    drawn = measured.one_per_class(pack.names)
+    every = [s["name"] for s in database.heldout_specs()] + list(pack.names)
     if args.materials:
         materials = [m.strip() for m in args.materials.split(",") if m.strip()]
     else:
-        materials = list(QUICK_MATERIALS) if args.quick else every
+        materials = list(QUICK_MATERIALS) if args.quick else every[:12] + drawn
     unknown = sorted(set(materials) - set(every))
     if unknown:
-        print(f"error: unknown material(s) {', '.join(unknown)}; choose from {', '.join(every)}",
-              file=sys.stderr)
+        print(f"error: unknown material(s) {', '.join(unknown)}; choose from "
+              f"{', '.join(every[:12])} or a material of {measured.PACK}", file=sys.stderr)
         return 2
     iterations = args.iterations or (20 if args.quick else mitsuba_peer.DEFAULT_ITERATIONS)
     spp = args.spp or mitsuba_peer.DEFAULT_SPP
@@ -177,8 +195,8 @@ def main(argv=None) -> int:
         runs = {}
         order = ("ours", "mitsuba") if i % 2 == 0 else ("mitsuba", "ours")
         for who in order:
-            runs[who] = run_ours(folder) if who == "ours" else run_mitsuba(folder, iterations,
-                                                                           spp)
+            runs[who] = (run_ours(folder, material) if who == "ours"
+                         else run_mitsuba(folder, iterations, spp))
         entry = {"capture": {"folder": str(folder), "generated_now": generated,
                              "seconds": capture_s}, "order": list(order)}
         for who in ("ours", "mitsuba"):

@@ -4,8 +4,12 @@ against Sec. 3.1-3.2). Writes ``bench/results/reliable.json`` and ``reliable.png
 Scene (``testkit.synthetic``): a height field with sharp ridges and cones, seen from
 above; photos are shaded with the TRUE geometry and a held-out material under
 four distant lights (1 % noise); the pipeline only sees the BLUNTED, noisy
-"photogrammetry" geometry. Variants: all pixels (no constraint), each constraint
-alone, all constraints; each with the same seeded random-subset trials, scored
+"photogrammetry" geometry. Materials: the 12 analytic held-out ones and one
+measured material per class (``testkit.measured.one_per_class``), each with the
+default (measured) basis that never saw it (``common.default_basis_without``);
+medians over all and per kind (``median_error_by_kind``). Variants: all
+pixels (no constraint), each constraint alone, all constraints; each with the
+same seeded random-subset trials, scored
 as the median trial ("<variant>") and as the trial the KL criterion selects
 ("<variant>_kl"). The paper's method is ``all_constraints_kl``; its Fig. 3e is
 ``all_pixels``. Error: rendered-sphere relative RMSE and BRDF log RMSE against
@@ -26,7 +30,7 @@ import time
 import common
 import numpy as np
 
-from brdf_reconstruct.core.brdf import basis, database, metrics, render
+from brdf_reconstruct.core.brdf import database, metrics, nbrdf, render
 from brdf_reconstruct.core.method import observations, reliable, selection
 from testkit import synthetic
 
@@ -67,8 +71,8 @@ def observe_all(scan, photos):
     return observations.concatenate(parts)
 
 
-def run_material(B, spec, resolution, seed):
-    truth_table = database.make_table(spec)
+def run_material(B, material, resolution, seed):
+    truth_table = common.heldout_table(material)
     truth_img = render.render_sphere(truth_table, LIGHT)
     truth, scan, photos = capture(truth_table, resolution, seed)
     t0 = time.perf_counter()
@@ -146,6 +150,17 @@ def measure_speed() -> dict:
     return result
 
 
+def materials(quick: bool) -> list[str]:
+    """The 12 analytic held-out materials and one measured material per class
+    (``testkit.measured.one_per_class``); ``quick``: 4 and 2. Each is scored with
+    the default (measured) basis that never saw it (``common.default_basis_without``)."""
+    from testkit import measured
+
+    analytic = [s["name"] for s in database.heldout_specs()]
+    drawn = measured.one_per_class(nbrdf.load(measured.PACK).names)
+    return analytic[:4] + drawn[:2] if quick else analytic + drawn
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true")
@@ -169,23 +184,28 @@ def main(argv=None) -> dict:
         return report
     info = common.machine()
     resolution = 128 if args.quick else 256
-    specs = database.heldout_specs()[: 4 if args.quick else None]
-    B = basis.load_default()
+    names = materials(args.quick)
+    bases = {name: common.default_basis_without(name) for name in names}
     per_material = {}
     for scene in range(args.scenes):
-        for i, spec in enumerate(specs):
+        for i, name in enumerate(names):
             t0 = time.perf_counter()
             errors, counts, times, normal_error, mp = run_material(
-                B, spec, resolution, seed=i + 1000 * scene)
-            per_material[f"{spec['name']}#scene{scene}"] = {
+                bases[name], name, resolution, seed=i + 1000 * scene)
+            per_material[f"{name}#scene{scene}"] = {
                 "errors": errors, "counts": counts, "times": times,
-                "normal_error": normal_error, "megapixels": mp, "scene": scene}
-            print(f"{spec['name']} scene {scene}: " + ", ".join(
+                "normal_error": normal_error, "megapixels": mp, "scene": scene,
+                "measured": common.is_measured(name)}
+            print(f"{name} scene {scene}: " + ", ".join(
                 f"{k} {v['sphere_rel_rmse']:.3f}" for k, v in errors.items())
                 + f" ({time.perf_counter() - t0:.0f} s)", flush=True)
     variants = [v for name in VARIANTS for v in (name, f"{name}_kl")]
     median = {v: float(np.median([m["errors"][v]["sphere_rel_rmse"]
                                   for m in per_material.values()])) for v in variants}
+    by_kind = {kind: {v: float(np.median([m["errors"][v]["sphere_rel_rmse"]
+                                          for m in per_material.values()
+                                          if m["measured"] == (kind == "measured")]))
+                      for v in variants} for kind in ("analytic", "measured")}
     per_scene = []
     for scene in range(args.scenes):
         runs = [m for m in per_material.values() if m["scene"] == scene]
@@ -206,6 +226,7 @@ def main(argv=None) -> dict:
         "n_scenes": args.scenes,
         "ablation": {
             "median_error": median,
+            "median_error_by_kind": by_kind,
             "median_brdf_log_rmse": median_brdf,
             "ratio_all_constraints_kl_to_all_pixels":
                 median["all_constraints_kl"] / median["all_pixels"],

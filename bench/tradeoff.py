@@ -10,9 +10,14 @@ smoothed, noisy; ``testkit/capture.py``), three lit photos from a COLMAP camera
 ring, Cycles G-buffers of the truth and of the scan (``bench/capture_arrays.py``),
 photos shaded from the truth's geometry with the true table plus 1 % noise.
 
+**Basis and materials.** Every run uses the shipped default, the measured basis,
+built without the material it scores (``common.default_basis_without``: the whole
+pack for an analytic held-out material, the other folds' 64 for a measured one).
+
 **Sweep** (one setting at a time away from a base point, for a glossy metal and
-a rough dielectric, two seeds each): trials; samples per trial, from the
-paper's 6 up to every reliable sample; photo resolution; basis size (PCA
+a rough dielectric, analytic and measured (:data:`MATERIALS`), two seeds each):
+trials; samples per trial, from the paper's 6 up to every reliable sample; photo
+resolution; basis size (PCA
 components, the basis truncated; 80 is built); KL path (fast numpy, or Cycles
 renders of each baked candidate at 4/16/64 samples). Each point runs in its own
 child process and records wall seconds per stage (G-buffers: the Cycles render
@@ -27,7 +32,8 @@ run as points of their own, so the README quotes what each measured.
 
 **Ablation** (the paper's Fig. 3e against Sec. 3.1): no constraints, each
 constraint alone, all constraints; each with the median trial (no KL) and the
-KL-chosen trial; the 12 held-out materials on the blunted bunny.
+KL-chosen trial; the 12 analytic held-out materials and one measured material
+per class (``testkit.measured.one_per_class``) on the blunted bunny.
 """
 
 from __future__ import annotations
@@ -49,7 +55,11 @@ RESULTS = common.RESULTS
 NOTE = ("2-core machine shared with other jobs during the run; wall times are noisy, "
         "compare within this run")
 
-MATERIALS = ("heldout_gold_medium", "heldout_rough_plastic")  # glossy metal, rough dielectric
+# glossy metal, rough dielectric: analytic held-out, and the measured metal and plastic
+# of testkit.measured.one_per_class (drawn at random, seed 0), each scored with the
+# default (measured) basis that never saw it (common.default_basis_without)
+MATERIALS = ("heldout_gold_medium", "heldout_rough_plastic", "two-layer-gold",
+             "specular-black-phenolic")
 SEEDS = (0, 1)
 ALL = 10**6  # "every reliable sample": more cells than any region has
 
@@ -71,6 +81,9 @@ class Point:
     constraints: str = "all"  # all | none | curvature | monotonicity | brightest
     noise: float = 0.01
     scan: str = "blunted"  # or "exact": the scan is the ground truth (good normals)
+    # the default (measured) basis without the material (common.default_basis_without);
+    # rows of runs before 2026-12-02 (analytic basis) lack the field and are never reused
+    basis: str = "measured"
 
     def label(self) -> str:
         return (f"samples={'all' if self.samples >= ALL else self.samples} trials={self.trials}"
@@ -104,17 +117,18 @@ STAGES = ("gbuffers", "observations", "reliable", "sampling", "reconstruction", 
           "bake")
 
 
-def _basis(components: int):
+def _basis(components: int, material: str):
+    """The default (measured) basis that never saw ``material``, with ``components``
+    components: built with 40 (``basis.N_COMPONENTS``) and truncated, or built with
+    more."""
     from brdf_reconstruct.core.brdf import basis
 
-    if components <= basis.N_COMPONENTS:
-        full = basis.load_default()
-        if components == full.n_components:
-            return full
-        return dataclasses.replace(full, Q=np.ascontiguousarray(full.Q[:, :components]),
-                                   singular_values=full.singular_values[:components],
-                                   _derived={})
-    return basis.load_default(n_components=components)
+    full = common.default_basis_without(material, max(components, basis.N_COMPONENTS))
+    if components == full.n_components:
+        return full
+    return dataclasses.replace(full, Q=np.ascontiguousarray(full.Q[:, :components]),
+                               singular_values=full.singular_values[:components],
+                               _derived={})
 
 
 def _cycles_select(point: Point, arrays, inputs, candidates):
@@ -143,13 +157,13 @@ def run_point(point: Point) -> dict:
     import capture_arrays
 
     from brdf_reconstruct.core.bake import fitting, lobes
-    from brdf_reconstruct.core.brdf import database, metrics
+    from brdf_reconstruct.core.brdf import metrics
     from brdf_reconstruct.core.method import pipeline, reliable
 
     arrays = capture_arrays.gbuffers(
         resolution=point.resolution, scan_options=EXACT_SCAN if point.scan == "exact" else None)
-    truth = database.make_table(common.heldout_spec(point.material))
-    B = _basis(point.components)
+    truth = common.heldout_table(point.material)
+    B = _basis(point.components, point.material)
     inputs = capture_arrays.photo_inputs(arrays, truth, noise=point.noise, seed=point.seed,
                                          views=range(point.photos))
     settings = pipeline.PipelineSettings(
@@ -300,19 +314,31 @@ def preset_points(quick: bool) -> dict:
     return configs
 
 
+def ablation_materials(quick: bool) -> list[str]:
+    """The 12 analytic held-out materials and one measured material per class
+    (``testkit.measured.one_per_class``, drawn with seed 0); ``quick``: 3 and 2."""
+    from brdf_reconstruct.core.brdf import database, nbrdf
+    from testkit import measured
+
+    analytic = [s["name"] for s in database.heldout_specs()]
+    drawn = measured.one_per_class(nbrdf.load(measured.PACK).names)
+    return analytic[:3] + drawn[:2] if quick else analytic + drawn
+
+
 def run_ablation(quick: bool) -> dict:
-    """The paper's ablation on the blunted bunny, all held-out materials (in-process)."""
+    """The paper's ablation on the blunted bunny, analytic and measured held-out
+    materials, each with the default basis that never saw it (in-process)."""
     import capture_arrays
 
-    from brdf_reconstruct.core.brdf import basis, database, metrics
+    from brdf_reconstruct.core.brdf import metrics
     from brdf_reconstruct.core.method import pipeline, reliable
 
     arrays = capture_arrays.gbuffers()
-    B = basis.load_default()
-    specs = database.heldout_specs()[: 3 if quick else None]
+    materials = ablation_materials(quick)
     per_material = {}
-    for spec in specs:
-        truth = database.make_table(spec)
+    for material in materials:
+        truth = common.heldout_table(material)
+        B = common.default_basis_without(material)
         inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=0)
         errors = {}
         for name, options in CONSTRAINTS.items():
@@ -329,16 +355,21 @@ def run_ablation(quick: bool) -> dict:
             errors[name] = {"median_trial": float(np.median(trial)),
                             "kl": float(trial[r.winner]), "reliable": r.counts.get("reliable"),
                             "skipped": r.skipped_assumptions}
-        per_material[spec["name"]] = errors
-        print(f"[ablation] {spec['name']}: " + ", ".join(
+        per_material[material] = errors
+        print(f"[ablation] {material}: " + ", ".join(
             f"{k} {v.get('kl', float('nan')):.3f}" for k, v in errors.items()), flush=True)
     variants = [(c, path) for c in CONSTRAINTS for path in ("median_trial", "kl")]
     median = {f"{c}_{path}": float(np.median([m[c][path] for m in per_material.values()
                                               if path in m[c]]))
               for c, path in variants}
     wins = sum(m["all"]["kl"] < m["none"]["median_trial"] for m in per_material.values())
+    by_kind = {kind: {f"{c}_{path}": float(np.median(
+        [m[c][path] for n, m in per_material.items()
+         if path in m[c] and common.is_measured(n) == (kind == "measured")]))
+        for c, path in variants} for kind in ("analytic", "measured")}
     return {
         "median_sphere_error": median,
+        "median_sphere_error_by_kind": by_kind,
         "ratio_all_kl_to_none": median["all_kl"] / median["none_median_trial"],
         "ratio_all_kl_to_none_kl": median["all_kl"] / median["none_kl"],
         "materials_where_all_kl_beats_none": f"{wins}/{len(per_material)}",

@@ -325,7 +325,9 @@ def _say(message: str) -> None:
 
 
 def main(argv=None) -> int:
-    """``python testkit/capture.py OUT --material NAME ...``: write a capture to OUT."""
+    """``python testkit/capture.py OUT --material NAME ...``: write a capture to OUT.
+    NAME: an analytic held-out material (``database.heldout_specs``) or a measured
+    one of the pack (``testkit.measured.PACK``)."""
     import argparse
 
     from brdf_reconstruct.core.brdf import database
@@ -340,11 +342,20 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     specs = {s["name"]: s for s in database.heldout_specs()}
-    if args.material not in specs:
-        print(f"error: unknown material {args.material!r}", file=sys.stderr)
-        return 2
+    if args.material in specs:
+        table = database.make_table(specs[args.material])
+    else:  # a measured material of the pack (testkit.measured.PACK)
+        from brdf_reconstruct.core.brdf import nbrdf
+        from testkit import measured
+
+        pack = nbrdf.load(measured.PACK) if measured.PACK.is_file() else None
+        if pack is None or args.material not in pack.names:
+            print(f"error: unknown material {args.material!r} (neither an analytic "
+                  "held-out material nor one of the measured pack's)", file=sys.stderr)
+            return 2
+        table = nbrdf.tabulate(pack, pack.index(args.material))
     step = max(1, args.views // args.lit)
-    job = generate(args.out, database.make_table(specs[args.material]), n_views=args.views,
+    job = generate(args.out, table, n_views=args.views,
                    lit_views=tuple(range(0, args.views, step))[: args.lit],
                    resolution=(args.width, args.height), seed=args.seed)
     print(f"wrote {job}")

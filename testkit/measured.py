@@ -75,3 +75,26 @@ def held_out(basis, name: str) -> str:
         raise ValueError(f"{name} is one of the basis' {len(materials)} training "
                          "materials: a material is never scored by a basis built from it")
     return name
+
+
+def fold_training(names, name: str, k: int = 5) -> list[str]:
+    """The training materials of the fold (:func:`folds` of ``names``, ``k`` folds,
+    seed 0) that holds ``name`` out: what a basis that may score ``name`` is built
+    from. ValueError if ``name`` is not among ``names``."""
+    for held in folds(names, k=k):
+        if name in held:
+            return [n for n in names if n not in held]
+    raise ValueError(f"{name} is not one of the {len(names)} measured materials")
+
+
+def one_per_class(names, seed: int = 0) -> list[str]:
+    """One material of each of :data:`CLASSES`, drawn at random with ``seed`` (not
+    picked by hand): the measured held-out set of the benches whose runs cost
+    seconds each (the bunny capture's), where all 80 would take hours. In class
+    order."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for kind in CLASSES:
+        members = sorted(n for n in names if material_class(n) == kind)
+        out.append(str(members[rng.integers(len(members))]))
+    return out

@@ -50,26 +50,33 @@ def make_table(spec):
         BRDF in 1/sr at each cell centre (``merl.cell_directions``), NaN where
         ``merl.valid_cells()`` is False.
     """
-    wi, wo = merl.cell_directions()
-    rho = models.evaluate(spec, wi, wo)
-    table = np.ascontiguousarray(rho.T).reshape(3, *merl.SHAPE)
-    table[:, ~merl.valid_cells().reshape(merl.SHAPE)] = np.nan
-    return table
+    table = np.full((3, merl.N_CELLS), np.nan)
+    table[:, merl.valid_cells()] = valid_values(spec)
+    return table.reshape(3, *merl.SHAPE)
 
 
 def valid_values(spec):
     """A material spec at the valid cells only (``merl.valid_cells()``, in order):
     (3, n_valid) float64 in 1/sr, what :func:`make_table` holds there, without
     evaluating the cells below the horizon (a quarter of the grid)."""
-    wi, wo = _valid_directions()
-    return np.ascontiguousarray(models.evaluate(spec, wi, wo).T)
+    wi, wo, levels = _valid_directions()
+    return np.ascontiguousarray(models.evaluate(spec, wi, wo, levels=levels).T)
 
 
 @functools.lru_cache(maxsize=1)
 def _valid_directions():
+    """wi, wo (n_valid, 3) at the valid cells and their ``levels`` for
+    ``models.evaluate``: the cosines of the 90 theta_h and 90 theta_d bin centres
+    and each valid cell's bins."""
     valid = merl.valid_cells()
     wi, wo = merl.cell_directions()
-    return wi[valid], wo[valid]
+    bins = np.indices(merl.SHAPE).reshape(3, -1)[:, valid]
+    n = max(merl.SHAPE[0], merl.SHAPE[1])
+    theta_h, theta_d, _ = merl.angles_from_cells(
+        np.stack([np.arange(n), np.arange(n), np.zeros(n, dtype=np.int64)], axis=1))
+    levels = {"cos_h": (np.cos(theta_h[:merl.SHAPE[0]]), bins[0]),
+              "cos_d": (np.cos(theta_d[:merl.SHAPE[1]]), bins[1])}
+    return wi[valid], wo[valid], levels
 
 
 def database_fingerprint(specs):

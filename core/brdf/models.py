@@ -79,6 +79,7 @@ SHEEN_ROUGHNESS_MIN = 0.25
 COS_MIN = 1e-9
 _TINY = 1e-300
 _BLOCK = 32768
+_PROBE = 61  # evaluate(levels=...) checks every _PROBE-th pair's cosines
 _INV_PI = 1.0 / math.pi
 _INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
 
@@ -151,12 +152,18 @@ def _smith_mu(cos, alpha, distribution):
 class _Geometry:
     """Terms shared by the lobes, for direction pairs above the horizon only.
 
-    Computed lazily and once: each is an (M,) float64 array.
+    Computed lazily and once: each is an (M,) float64 array. ``levels``, if given,
+    maps ``"cos_d"`` and/or ``"cos_h"`` to ``(values (L,), index (M,))`` with
+    ``wi . h == values[index]`` (resp. ``n . h``): the few distinct half and
+    difference cosines of a tabulated grid (90 bins each on the MERL grid), so a
+    function of ``wi . h`` alone (Fresnel) or of ``n . h`` alone (the
+    distributions) is evaluated L times instead of M (:meth:`of_level`).
     """
 
-    def __init__(self, wi, wo):
+    def __init__(self, wi, wo, levels=None):
         self.wi = wi
         self.wo = wo
+        self.levels = levels or {}
         # Within 1e-9 rad of the horizon a cosine is evaluated as 1e-9: a
         # near-mirror lobe at grazing would otherwise overflow float64.
         self.cos_i = np.maximum(wi[:, 2], COS_MIN)
@@ -168,13 +175,39 @@ class _Geometry:
 
     @cached_property
     def cos_d(self):  # wi . h = wo . h = sqrt((1 + wi.wo) / 2)
+        if "cos_d" in self.levels:
+            values, index = self.levels["cos_d"]
+            return values[index]
+        return self.exact_cos_d()
+
+    def exact_cos_d(self):
         return np.sqrt(np.clip(0.5 + 0.5 * self.dot, 0.0, 1.0))
 
     @cached_property
     def cos_h(self):  # n . h = (cos_i + cos_o) / |wi + wo|
+        if "cos_h" in self.levels:
+            values, index = self.levels["cos_h"]
+            return values[index]
+        return self.exact_cos_h()
+
+    def exact_cos_h(self):
         s = self.cos_i + self.cos_o
         length = np.sqrt(np.maximum(2.0 + 2.0 * self.dot, s * s))
         return np.minimum(s / np.maximum(length, _TINY), 1.0)
+
+    def of_level(self, name, function, channels=False):
+        """``function`` of ``cos_d`` or ``cos_h`` (``name``): (M,), or (M, 3) when
+        ``channels`` (called on a column, ``x[:, None]``, and broadcast to 3);
+        evaluated on the L levels and gathered when the geometry has them."""
+        if name in self.levels:
+            values, index = self.levels[name]
+        else:
+            values, index = getattr(self, name), None
+        if channels:
+            out = np.broadcast_to(function(values[:, None]), (len(values), 3))
+        else:
+            out = function(values)
+        return out if index is None else out[index]
 
     @cached_property
     def xy_dot(self):  # projections onto the tangent plane, dotted
@@ -187,30 +220,29 @@ class _Geometry:
         return 0.5 / (self.cos_o * mu_i + self.cos_i * mu_o)
 
     def ndf(self, alpha, distribution):
-        if distribution == "ggx":
-            return ggx_ndf(self.cos_h, alpha)
-        return beckmann_ndf(self.cos_h, alpha)
+        function = ggx_ndf if distribution == "ggx" else beckmann_ndf
+        return self.of_level("cos_h", lambda cos: function(cos, alpha))
 
 
 # --- lobes on the valid subset: each returns an array broadcastable to (M, 3) ----
 
 
-def _fresnel_term(fresnel, cos):
+def _fresnel_term(fresnel, g):
+    """The lobe's Fresnel factor at ``wi . h``: (M, 3), or (M, 1) for a grey
+    dielectric."""
     kind = fresnel["type"]
     if kind == "dielectric":
-        eta = fresnel["eta"]
-        if np.ndim(eta) == 0:
-            return fresnel_dielectric(cos, eta)[:, None]
-        return fresnel_dielectric(cos[:, None], eta)
+        return g.of_level("cos_d", lambda c: fresnel_dielectric(c, fresnel["eta"]), True)
     if kind == "conductor":
-        return fresnel_conductor(cos[:, None], fresnel["n"], fresnel["k"])
-    return fresnel_schlick(cos[:, None], fresnel["f0"])
+        return g.of_level("cos_d", lambda c: fresnel_conductor(c, fresnel["n"], fresnel["k"]),
+                          True)
+    return g.of_level("cos_d", lambda c: fresnel_schlick(c, fresnel["f0"]), True)
 
 
 def _microfacet(g, alpha, distribution, fresnel):
     alpha = max(alpha, ALPHA_MIN)
     dv = g.ndf(alpha, distribution) * g.visibility(alpha, distribution)
-    return dv[:, None] * _fresnel_term(fresnel, g.cos_d)
+    return dv[:, None] * _fresnel_term(fresnel, g)
 
 
 def _lobe(lobe, g):
@@ -229,7 +261,8 @@ def _lobe(lobe, g):
         r = lobe["roughness"]
         ci, co = g.cos_i, g.cos_o
         v = 0.25 / (ci + co - ci * co)
-        return (charlie_ndf(g.cos_h, r) * v)[:, None] * lobe["color"]
+        return (g.of_level("cos_h", lambda cos: charlie_ndf(cos, r)) * v)[:, None] \
+            * lobe["color"]
     return _microfacet(g, lobe["alpha"], kind, lobe["fresnel"])
 
 
@@ -405,7 +438,7 @@ def _directions(w, name):
 # --- public entry ----------------------------------------------------------------
 
 
-def evaluate(spec, wi, wo):
+def evaluate(spec, wi, wo, *, levels=None):
     """Evaluate a material spec at direction pairs.
 
     Parameters
@@ -414,6 +447,18 @@ def evaluate(spec, wi, wo):
         Material spec, see the module docstring.
     wi, wo : array_like, (N, 3), float32 or float64
         Unit light and view directions in the local frame (normal +z).
+    levels : dict, optional
+        When the pairs come from a tabulated grid: ``{"cos_d": (values, index),
+        "cos_h": (values, index)}`` (either key may be left out), ``values`` (L,)
+        the distinct half-difference cosines ``wi . h`` (resp. half-angle cosines
+        ``n . h``) and ``index`` (N,) int each pair's level (``database.valid_values``
+        passes the MERL grid's 90 theta_d and 90 theta_h bins). Fresnel (resp. the
+        microfacet and sheen distributions) is then evaluated at the L levels only;
+        the result equals the plain evaluation to rounding (the plain path's
+        cosines carry the directions' rounding, which a near-mirror peak amplifies:
+        up to 1e-7 relative over the training database). Checked on every 61st
+        pair: a cosine more than 1e-9 from its level's value raises ValueError, so a
+        wrong index array is caught.
 
     Returns
     -------
@@ -425,6 +470,7 @@ def evaluate(spec, wi, wo):
     wo = _directions(wo, "wo")
     if wi.shape != wo.shape:
         raise ValueError(f"wi and wo: shapes differ, {wi.shape} vs {wo.shape}")
+    levels = _levels(levels, wi.shape[0])
     out = np.zeros((wi.shape[0], 3))
     # Blocks of a few tens of thousands of pairs keep the temporaries in cache:
     # about twice as fast as whole-array passes over 1.46 M MERL cells.
@@ -432,8 +478,41 @@ def evaluate(spec, wi, wo):
         a, b = wi[start:start + _BLOCK], wo[start:start + _BLOCK]
         block = out[start:start + _BLOCK]
         valid = (a[:, 2] > 0.0) & (b[:, 2] > 0.0)
-        if valid.all():
-            block[...] = _material(material, _Geometry(a, b))
-        elif valid.any():
-            block[valid] = _material(material, _Geometry(a[valid], b[valid]))
+        if not valid.any():
+            continue
+        every = bool(valid.all())
+        mine = {name: (values, index[start:start + _BLOCK][valid])
+                for name, (values, index) in levels.items()}
+        g = _Geometry(a, b, mine) if every else _Geometry(a[valid], b[valid], mine)
+        if mine:  # every 61st pair checked against its levels: misuse shows at once
+            probe = _Geometry(g.wi[::_PROBE], g.wo[::_PROBE])
+            for name, (values, index) in mine.items():
+                exact = probe.exact_cos_d() if name == "cos_d" else probe.exact_cos_h()
+                if np.max(np.abs(exact - values[index[::_PROBE]])) > 1e-9:
+                    raise ValueError(f"levels: a pair's {name} is not its level's value")
+        if every:
+            block[...] = _material(material, g)
+        else:
+            block[valid] = _material(material, g)
+    return out
+
+
+def _levels(levels, n) -> dict:
+    """``levels`` checked: {name: (values (L,) finite float64, index (n,) intp)}."""
+    if levels is None:
+        return {}
+    unknown = sorted(set(levels) - {"cos_d", "cos_h"})
+    if unknown:
+        raise ValueError(f"levels: unknown key(s) {', '.join(unknown)}; use cos_d, cos_h")
+    out = {}
+    for name, (values, index) in levels.items():
+        values = np.asarray(values, dtype=np.float64)
+        index = np.asarray(index)
+        if values.ndim != 1 or not np.all(np.isfinite(values)):
+            raise ValueError(f"levels: {name} values must be a finite 1-D array")
+        if index.shape != (n,) or not np.issubdtype(index.dtype, np.integer):
+            raise ValueError(f"levels: {name} index must be ({n},) integers")
+        if n and (index.min() < 0 or index.max() >= len(values)):
+            raise ValueError(f"levels: {name} index out of range of the values")
+        out[name] = (values, index)
     return out

@@ -105,11 +105,20 @@ def test_make_table_nan_exactly_where_cells_are_invalid():
     assert np.array_equal(np.isnan(table), np.broadcast_to(~valid, table.shape))
     measured = table[:, valid]
     assert np.all(np.isfinite(measured)) and np.all(measured >= 0)
-    # Same values as evaluating the model directly, in the table's C order.
+    # Same values as evaluating the model directly, in the table's C order, with
+    # Fresnel and the distributions at the cells' theta_d and theta_h bin centres
+    # (test_models checks that this equals the plain evaluation to rounding).
     wi, wo = merl.cell_directions()
     cells = np.flatnonzero(valid.ravel())[::9973]
-    np.testing.assert_array_equal(table.reshape(3, -1)[:, cells].T,
-                                  models.evaluate(spec, wi[cells], wo[cells]))
+    bins = np.indices(merl.SHAPE).reshape(3, -1)[:, cells]
+    centre = (np.arange(90) + 0.5) / 90
+    levels = {"cos_h": (np.cos(centre**2 * np.pi / 2), bins[0]),
+              "cos_d": (np.cos(centre * np.pi / 2), bins[1])}
+    np.testing.assert_array_equal(
+        table.reshape(3, -1)[:, cells].T,
+        models.evaluate(spec, wi[cells], wo[cells], levels=levels))
+    np.testing.assert_allclose(table.reshape(3, -1)[:, cells].T,
+                               models.evaluate(spec, wi[cells], wo[cells]), rtol=1e-9)
 
 
 def test_make_table_of_lambert_is_constant():

@@ -288,3 +288,49 @@ def test_bad_directions_name_the_argument():
     bad[0, 0] = np.nan
     with pytest.raises(ValueError, match="wo"):
         models.evaluate(ALL_MATERIALS["lambert"], wi, bad)
+
+
+@pytest.mark.parametrize("name", sorted(ALL_MATERIALS))
+def test_terms_on_grid_levels_equal_the_plain_evaluation(name):
+    # Pairs built from half/difference angles with theta_h on 5 and theta_d on 7
+    # levels (as on the MERL grid), some below the horizon: Fresnel and the
+    # distributions evaluated once per level and gathered must give the per-pair
+    # result to rounding, and zero where invalid.
+    from brdf_reconstruct.core.brdf import merl
+
+    rng = np.random.default_rng(3)
+    n = 5000
+    theta_h_levels = np.linspace(0.0, 1.5, 5)
+    theta_d_levels = np.linspace(0.05, 1.55, 7)
+    ih, id_ = rng.integers(0, 5, n), rng.integers(0, 7, n)
+    wi, wo = merl.dirs_from_half_diff(theta_h_levels[ih], theta_d_levels[id_],
+                                      rng.uniform(0, np.pi, n))
+    assert np.any(wi[:, 2] <= 0) and np.any(wi[:, 2] > 0)
+    plain = models.evaluate(ALL_MATERIALS[name], wi, wo)
+    for levels in ({"cos_d": (np.cos(theta_d_levels), id_)},
+                   {"cos_h": (np.cos(theta_h_levels), ih)},
+                   {"cos_d": (np.cos(theta_d_levels), id_),
+                    "cos_h": (np.cos(theta_h_levels), ih)}):
+        # to rounding: the plain path recomputes the cosines from the rounded
+        # directions (and clamps cos_i, cos_o at 1e-9), which moves a sharp peak's
+        # value by up to 1e-10 relative here (the levels' own check allows 1e-9), and
+        # a far tail's underflow by 1e-12 of the peak
+        np.testing.assert_allclose(models.evaluate(ALL_MATERIALS[name], wi, wo, levels=levels),
+                                   plain, rtol=1e-9, atol=1e-12 * plain.max())
+
+
+def test_wrong_levels_are_refused():
+    from brdf_reconstruct.core.brdf import merl
+
+    wi, wo = merl.dirs_from_half_diff(np.full(4, 0.3), np.full(4, 0.6), np.full(4, 1.0))
+    spec = ALL_MATERIALS["ggx_conductor"]
+    with pytest.raises(ValueError, match="cos_d is not its level"):
+        models.evaluate(spec, wi, wo, levels={"cos_d": (np.cos([0.6, 0.7]), np.ones(4, int))})
+    with pytest.raises(ValueError, match="cos_h is not its level"):
+        models.evaluate(spec, wi, wo, levels={"cos_h": (np.cos([0.3, 0.4]), np.ones(4, int))})
+    with pytest.raises(ValueError, match="out of range"):
+        models.evaluate(spec, wi, wo, levels={"cos_d": (np.cos([0.6]), np.ones(4, int))})
+    with pytest.raises(ValueError, match="integers"):
+        models.evaluate(spec, wi, wo, levels={"cos_d": (np.cos([0.6]), np.zeros(4))})
+    with pytest.raises(ValueError, match="unknown key"):
+        models.evaluate(spec, wi, wo, levels={"theta": (np.cos([0.6]), np.zeros(4, int))})

@@ -144,3 +144,21 @@ def test_a_material_is_refused_as_a_test_case_of_a_basis_built_with_it(tmp_path)
         names = [n for n in pack.names if n not in held]
         fake = dataclasses.replace(B, info={**B.info, "materials": names})
         assert all(measured.held_out(fake, n) == n for n in held)
+
+
+@needs_pack
+def test_a_fold_training_set_never_holds_its_material_and_one_per_class_is_seeded():
+    from testkit import measured
+
+    names = nbrdf.load(PACK).names
+    for name in ("aluminium", "pink-fabric2", "green-latex", "two-layer-gold"):
+        train = measured.fold_training(names, name)
+        assert name not in train and len(train) == 64
+        assert set(train) | next(set(f) for f in measured.folds(names) if name in f) \
+            == set(names)
+    with pytest.raises(ValueError, match="not one of the 80"):
+        measured.fold_training(names, "unobtainium")
+    drawn = measured.one_per_class(names)
+    assert [measured.material_class(n) for n in drawn] == list(measured.CLASSES)
+    assert drawn == measured.one_per_class(names, seed=0)
+    assert drawn != measured.one_per_class(names, seed=1)
