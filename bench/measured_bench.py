@@ -2,6 +2,7 @@
 (MERL) BRDFs from few samples, per fold and per material class.
 
     .venv/bin/python bench/measured_bench.py [--quick] [--folds K] [--bases a,b,...]
+                                             [--seeds S] [--out PATH]
 
 The 80 measured materials of the pack (``testkit.measured.PACK``, Sztrajman et al.
 2021 networks of MERL) are split into 5 stratified folds of 16
@@ -17,11 +18,16 @@ saw it:
 Per held-out material: reconstruction (``core.method.reconstruct`` with its
 defaults: p = k, eta by evidence; exact values at the cells, no photos) from
 n = 6 and n = 20 condition-optimal cells
-and from 2000 random cells, seeds 0 and 1; score: rendered-sphere relative RMSE
-under four lights (``render.REFERENCE_LIGHT`` and ``metrics.SPHERE_LIGHTS``).
-Writes ``bench/results/measured.json`` and ``measured.png`` (``--quick``:
-``measured_quick.*``). About 40 minutes on the 2-core machine with the three
-bases (``--quick``: 2 folds, seed 0).
+and from 2000 random cells, seeds 0 and 1 (``--seeds S``: 0 to S - 1); score:
+rendered-sphere relative RMSE under four lights (``render.REFERENCE_LIGHT`` and
+``metrics.SPHERE_LIGHTS``). Each cell set's condition number (``condition``) is
+recorded, and per setting the median over each seed's cell sets (``per_seed``)
+and the Spearman correlation, over folds x seeds, of the condition against the
+fold's median error (``condition_vs_error``): does the sampler's criterion predict
+the error? Writes ``bench/results/measured.json`` and ``measured.png``
+(``--quick``: ``measured_quick.*``; ``--out``: that path and its ``.png``). About
+40 minutes on the 2-core machine with the three bases (``--quick``: 2 folds, seed
+0).
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import pathlib
 import sys
 import time
 
@@ -77,7 +84,13 @@ def main(argv=None) -> int:
     parser.add_argument("--folds", type=int, default=5, help="folds of the 80 (default 5)")
     parser.add_argument("--bases", default=",".join(BASES),
                         help=f"comma-separated, of {', '.join(BASES)}")
+    parser.add_argument("--seeds", type=int, default=None,
+                        help="sampler seeds 0 to S - 1 (default 2; --quick 1)")
+    parser.add_argument("--out", default=None, help="JSON path (default bench/results/...)")
     args = parser.parse_args(argv)
+    if args.seeds is not None and args.seeds < 1:
+        print("error: --seeds must be at least 1", file=sys.stderr)
+        return 2
     bases = common.listed(args.bases, BASES, "--bases")
     if bases is None:
         return 2
@@ -85,7 +98,7 @@ def main(argv=None) -> int:
     if pack is None:
         return 1
     info = common.machine("bases against measured materials, cross-validated")
-    seeds = (0,) if args.quick else (0, 1)
+    seeds = tuple(range(args.seeds if args.seeds else 1 if args.quick else 2))
     folds = measured.folds(pack.names, k=args.folds)
     if args.quick:
         folds = folds[:2]
@@ -114,6 +127,9 @@ def main(argv=None) -> int:
                            "seconds": time.perf_counter() - t0})
         cells = {(b, label, seed): _cells(B, kind, n, seed) for b, B in built.items()
                  for label, n, kind in SETTINGS for seed in seeds}
+        condition = {key: sampling.acquisition_condition(
+            built[key[0]].Q, built[key[0]].rows_of(merl.linear_index(c)))
+            for key, c in cells.items()}
         for name in held:
             truth = nbrdf.tabulate(pack, pack.index(name))
             truth_spheres = _spheres(truth)
@@ -121,6 +137,7 @@ def main(argv=None) -> int:
                 rows.append({"fold": f, "material": name,
                              "class": measured.material_class(name), "basis": b,
                              "setting": label, "seed": seed,
+                             "condition": condition[(b, label, seed)],
                              "sphere_rel_rmse": _score(built[b], name, truth, truth_spheres, c)})
         print(f"fold {f + 1}/{len(folds)} done ({time.perf_counter() - t_all:.0f} s)",
               flush=True)
@@ -140,16 +157,44 @@ def main(argv=None) -> int:
                                             if r["basis"] == b and r["material"] == n
                                             and r["setting"] == "n=20"]))
                         for n in sorted({r["material"] for r in rows})} for b in bases}
+    per_seed, condition_vs_error = _seed_spread(rows, bases, len(folds), seeds)
     doc = {"machine": common.machine_end(info), "folds": folds, "seeds": list(seeds),
+           "per_seed": per_seed, "condition_vs_error": condition_vs_error,
            "lights": LIGHTS.tolist(), "summary_median_sphere_rel_rmse": summary,
            "per_fold": per_fold, "per_class": per_class, "per_material_n20": per_material,
            "builds": builds, "seconds": time.perf_counter() - t_all, "runs": rows}
     stem = "measured_quick" if args.quick else "measured"  # a quick run never replaces
-    path = common.write_json(common.RESULTS / f"{stem}.json", doc, arguments=vars(args))
-    plot(doc, common.RESULTS / f"{stem}.png")
-    print(json.dumps({"summary": summary, "per_class": per_class}, indent=1))
+    target = pathlib.Path(args.out) if args.out else common.RESULTS / f"{stem}.json"
+    path = common.write_json(target, doc, arguments=vars(args))
+    plot(doc, target.with_suffix(".png"))
+    print(json.dumps({"summary": summary, "per_class": per_class, "per_seed": per_seed,
+                      "condition_vs_error": condition_vs_error}, indent=1))
     print(f"-> {path}")
     return 0
+
+
+def _seed_spread(rows, bases, n_folds, seeds):
+    """Per basis and setting: the median error of each seed's cell sets, and the
+    Spearman correlation over folds x seeds of a cell set's condition number against
+    the fold's median error (None with fewer than 3 pairs)."""
+    from scipy import stats
+
+    per_seed, correlation = {}, {}
+    for b in bases:
+        per_seed[b], correlation[b] = {}, {}
+        for label, _, _ in SETTINGS:
+            mine = [r for r in rows if r["basis"] == b and r["setting"] == label]
+            per_seed[b][label] = [float(np.median([r["sphere_rel_rmse"] for r in mine
+                                                   if r["seed"] == s])) for s in seeds]
+            pairs = [(next(r["condition"] for r in group), float(np.median(
+                [r["sphere_rel_rmse"] for r in group])))
+                for f in range(n_folds) for s in seeds
+                if (group := [r for r in mine if r["fold"] == f and r["seed"] == s])]
+            conditions = [c for c, _ in pairs]
+            errors = [e for _, e in pairs]
+            correlation[b][label] = (float(stats.spearmanr(conditions, errors)[0])
+                                     if len(pairs) >= 3 else None)
+    return per_seed, correlation
 
 
 def plot(doc: dict, path) -> None:
