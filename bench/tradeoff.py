@@ -214,6 +214,21 @@ def _peak_rss_mb() -> float:
     return peak / 2**20 if peak else float("nan")
 
 
+def _warm_gbuffers() -> None:
+    """Every G-buffer set the points read, rendered now if not cached."""
+    import capture_arrays
+
+    for res in AXES["resolution"]:
+        capture_arrays.gbuffers(resolution=res["resolution"])
+    capture_arrays.gbuffers(resolution=BASE.resolution, scan_options=EXACT_SCAN)
+
+
+def _read_presets() -> dict:
+    from brdf_reconstruct.brdf_addon.presets import PRESETS
+
+    return PRESETS
+
+
 def _pool():
     return futures.ProcessPoolExecutor(max_workers=1, max_tasks_per_child=1,
                                        mp_context=multiprocessing.get_context("spawn"))
@@ -304,10 +319,10 @@ def pareto(summary: list) -> list:
 def preset_points(quick: bool) -> dict:
     """The extension's presets as points (settings from ``brdf_addon.props.PRESETS``,
     read without Blender: the same dict is in ``brdf_addon/presets.py``)."""
-    from brdf_reconstruct.brdf_addon.presets import PRESETS
-
+    with _pool() as pool:  # brdf_addon imports bpy: never in this process (_warm_gbuffers)
+        presets = pool.submit(_read_presets).result()
     configs = {}
-    for name, p in PRESETS.items():
+    for name, p in presets.items():
         configs[name] = dataclasses.replace(
             BASE, samples=p["samples"], trials=p["trials"], subset=p["subset_fraction"],
             kl="cycles" if p["kl_path"] == "CYCLES" else "fast", kl_samples=p["kl_samples"])
@@ -462,11 +477,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     info = common.machine(NOTE)
     t0 = time.perf_counter()
-    import capture_arrays
 
-    for res in AXES["resolution"]:  # render (or find) the G-buffers once, in this process
-        capture_arrays.gbuffers(resolution=res["resolution"])
-    capture_arrays.gbuffers(resolution=BASE.resolution, scan_options=EXACT_SCAN)
+    # Render (or find) the G-buffers once, in a child: a process that has imported bpy
+    # hands its sys.path (with bpy's own scripts/modules first) to the spawned point
+    # processes, whose "import bpy" then finds the inner module and fails.
+    with _pool() as pool:
+        pool.submit(_warm_gbuffers).result()
     tag = "_quick" if args.quick else ""
     path = RESULTS / f"tradeoff{tag}.json"
     report = json.loads(path.read_text()) if path.is_file() else {}
