@@ -28,10 +28,11 @@ PRESETS = {
 }
 
 # One line per preset for the panel and tooltips: what it costs and buys, as measured
-# (bench/results/tradeoff.json, "presets": bunny capture, 3 photos of 240 x 180, wall
-# seconds per region on a 2-core machine, median rendered-sphere error).
+# (bench/results/tradeoff.json, "presets", 2026-12-02, the default measured basis:
+# bunny capture, 3 photos of 240 x 180, wall seconds per region on a 2-core machine,
+# median rendered-sphere error over 2 analytic and 2 measured held-out materials).
 HINTS = {
-    "FAST": "20 samples x 4 trials, numpy selection: about 3 s, error 0.23",
-    "BALANCED": "20 samples x 16 trials, numpy selection: about 6 s, error 0.15",
-    "ACCURATE": "20 samples x 16 trials, Cycles selection: about 55 s, error 0.13",
+    "FAST": "20 samples x 4 trials, numpy selection: about 6 s, error 0.30",
+    "BALANCED": "20 samples x 16 trials, numpy selection: about 15 s, error 0.28",
+    "ACCURATE": "20 samples x 16 trials, Cycles selection: about 70 s, error 0.28",
 }
