@@ -23,6 +23,7 @@ Scripts import it as ``import common``: a script run as ``python bench/x.py`` ha
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import pathlib
@@ -248,9 +249,8 @@ def measured_pack_or_error():
 
 def measured_basis_without(pack, held):
     """The measured basis of the pack's materials not in ``held`` (a cross-validation
-    fold's), listing them in ``info["materials"]``."""
-    import functools
-
+    fold's), listing them in ``info["materials"]``; built now, never cached (the
+    cross-validation bench times the builds)."""
     from brdf_reconstruct.core.brdf import basis, nbrdf
 
     train = [n for n in pack.names if n not in held]
@@ -292,13 +292,25 @@ def default_basis_without(name: str, n_components: int | None = None):
 
     k = basis.N_COMPONENTS if n_components is None else n_components
     if not is_measured(name):
-        B = basis.load_measured(n_components=k)
+        B = _measured_basis(None, k)
     else:
         names = nbrdf.load(measured.PACK).names
-        B = basis.load_measured(measured.PACK, names=measured.fold_training(names, name),
-                                n_components=k)
+        B = _measured_basis(tuple(measured.fold_training(names, name)), k)
     measured.held_out(B, name)
     return B
+
+
+@functools.lru_cache(maxsize=8)
+def _measured_basis(names: tuple[str, ...] | None, n_components: int):
+    """``basis.load_measured`` of the bundled pack (``names`` None) or of the shared
+    pack's ``names``, loaded once per process: the 12 analytic materials of a bench
+    share one basis instead of holding 12 copies (about 0.2 GB each)."""
+    from brdf_reconstruct.core.brdf import basis
+    from testkit import measured
+
+    if names is None:
+        return basis.load_measured(n_components=n_components)
+    return basis.load_measured(measured.PACK, names=names, n_components=n_components)
 
 
 def pack_without(name: str, folder) -> pathlib.Path:

@@ -62,9 +62,7 @@ def main(argv=None) -> int:
         return 1
     info = common.machine("the paper's Fig. 4 materials on degraded captures")
     analytic = basis.load_default()
-    folds = measured.folds(pack.names, k=5)
-    bases = {name: common.measured_basis_without(pack, next(f for f in folds if name in f))
-             for name in MATERIALS}
+    bases = {name: common.default_basis_without(name) for name in MATERIALS}
     doc = {"objects": {}}
     for obj in objects:
         arrays = capture_arrays.gbuffers(mesh=None if obj == "bunny"
@@ -95,8 +93,6 @@ def _object(arrays, pack, bases, analytic, seed):
         row = {"material": name, "class": measured.material_class(name)}
         tables = {}
         for label, B in (("measured", bases[name]), ("analytic", analytic)):
-            if label == "measured":
-                measured.held_out(B, name)
             region = pipeline.run(B, inputs, settings).regions[0]
             table = np.asarray(region.candidates[region.winner], dtype=np.float64)
             if not np.all(np.isfinite(table[np.isfinite(truth)])):

@@ -71,11 +71,10 @@ def _valid_directions():
     valid = merl.valid_cells()
     wi, wo = merl.cell_directions()
     bins = np.indices(merl.SHAPE).reshape(3, -1)[:, valid]
-    n = max(merl.SHAPE[0], merl.SHAPE[1])
-    theta_h, theta_d, _ = merl.angles_from_cells(
-        np.stack([np.arange(n), np.arange(n), np.zeros(n, dtype=np.int64)], axis=1))
-    levels = {"cos_h": (np.cos(theta_h[:merl.SHAPE[0]]), bins[0]),
-              "cos_d": (np.cos(theta_d[:merl.SHAPE[1]]), bins[1])}
+    # cells (i, i, i): theta_h and theta_d have 90 bins each (the MERL format)
+    diagonal = np.repeat(np.arange(merl.SHAPE[0]), 3).reshape(-1, 3)
+    theta_h, theta_d, _ = merl.angles_from_cells(diagonal)
+    levels = {"cos_h": (np.cos(theta_h), bins[0]), "cos_d": (np.cos(theta_d), bins[1])}
     return wi[valid], wo[valid], levels
 
 
