@@ -311,31 +311,3 @@ def _measured_basis(names: tuple[str, ...] | None, n_components: int):
     if names is None:
         return basis.load_measured(n_components=n_components)
     return basis.load_measured(measured.PACK, names=names, n_components=n_components)
-
-
-def pack_without(name: str, folder) -> pathlib.Path:
-    """A pack file in ``folder`` holding the networks of ``measured.fold_training``
-    for ``name`` (the pack's materials outside the fold that holds it out): given to
-    a batch run as ``$BRDF_MEASURED_PACK``, the product's own override, so that the
-    run's measured basis never saw ``name``. Written once (temporary name, then
-    renamed)."""
-    import dataclasses
-
-    import numpy as np
-
-    from brdf_reconstruct.core.brdf import nbrdf
-    from testkit import measured
-
-    pack = nbrdf.load(measured.PACK)
-    train = measured.fold_training(pack.names, name)
-    index = [pack.index(n) for n in train]
-    folder = pathlib.Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"pack_without_fold_of_{name}.npz"
-    if not path.is_file():
-        tmp = folder / f".{path.stem}.tmp.npz"
-        layers = {f.name: getattr(pack, f.name)[index] for f in dataclasses.fields(pack)
-                  if f.name != "names"}
-        np.savez(tmp, names=np.array(train), **layers)
-        os.replace(tmp, path)
-    return path

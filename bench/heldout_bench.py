@@ -3,7 +3,7 @@
 For every held-out material: the 12 analytic ones (``core.brdf.database.heldout_specs``)
 and one measured material per class (``testkit.measured.one_per_class``, drawn with
 seed 0), the measured ones through a pack without their cross-validation fold
-(``common.pack_without``, given to the batch as ``$BRDF_MEASURED_PACK``):
+(``measured.pack_without``, given to the batch as ``$BRDF_MEASURED_PACK``):
 
 1. The bunny capture of the demo (``testkit/capture.py``: 6 views, 3 lit photos,
    240 x 180, seed 0), generated once into
@@ -57,10 +57,10 @@ NOTE = ("shared with other jobs: wall times are noisy; load_1min is the 1-minute
 def run_ours(folder: pathlib.Path, material: str) -> dict:
     """Run the batch entry on the Balanced job with the default (measured) basis; for
     a measured material, ``$BRDF_MEASURED_PACK`` names a pack without the material's
-    cross-validation fold (``common.pack_without``), so the basis never saw it.
+    cross-validation fold (``measured.pack_without``), so the basis never saw it.
     Returns the table, wall time and the report's stage timings (seconds)."""
     from brdf_reconstruct.core.brdf import merl
-    from testkit import capture
+    from testkit import capture, measured
 
     job = capture.preset_job(folder, "BALANCED")
     out = folder / "out"
@@ -68,7 +68,7 @@ def run_ours(folder: pathlib.Path, material: str) -> dict:
         shutil.rmtree(out)
     env = None
     if common.is_measured(material):
-        env = {"BRDF_MEASURED_PACK": str(common.pack_without(material, folder.parent))}
+        env = {"BRDF_MEASURED_PACK": str(measured.pack_without(material, folder.parent))}
     done, wall, load = common.run_batch(job, env=env)
     if done.returncode != 0:
         raise RuntimeError(f"batch failed on {job}: {done.stderr.strip()[-500:]}")

@@ -2,19 +2,23 @@
 and cross-validation folds that never score a material the basis was built from.
 
 No bpy. The pack is ``merl_nbrdf.npz`` in ``../shared/data`` beside the repository,
-or in ``$BRDF_SHARED_DATA``.
+or in ``$BRDF_SHARED_DATA``; where neither holds it, the copy the extension ships
+(``nbrdf.BUNDLED_PACK``, the same file), so that a fresh clone tests it too.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import pathlib
 
 import numpy as np
 
+from brdf_reconstruct.core.brdf import nbrdf
+
 DATA = pathlib.Path(os.environ.get(
     "BRDF_SHARED_DATA", pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"))
-PACK = DATA / "merl_nbrdf.npz"
+PACK = DATA / "merl_nbrdf.npz" if (DATA / "merl_nbrdf.npz").is_file() else nbrdf.BUNDLED_PACK
 
 CLASSES = ("metal", "paint", "plastic", "fabric", "wood", "stone", "rubber")
 # MERL names that the name rules below would not place (or would place wrongly)
@@ -98,3 +102,24 @@ def one_per_class(names, seed: int = 0) -> list[str]:
         members = sorted(n for n in names if material_class(n) == kind)
         out.append(str(members[rng.integers(len(members))]))
     return out
+
+
+def pack_without(name: str, folder) -> pathlib.Path:
+    """A pack file in ``folder`` holding the networks of :func:`fold_training` for
+    ``name`` (the pack's materials outside the fold that holds it out): given to a
+    batch run as ``$BRDF_MEASURED_PACK``, the product's own override, so that the
+    run's measured basis never saw ``name``. Written once (temporary name, then
+    renamed)."""
+    pack = nbrdf.load(PACK)
+    train = fold_training(pack.names, name)
+    index = [pack.index(n) for n in train]
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"pack_without_fold_of_{name}.npz"
+    if not path.is_file():
+        tmp = folder / f".{path.stem}.tmp.npz"
+        layers = {f.name: getattr(pack, f.name)[index] for f in dataclasses.fields(pack)
+                  if f.name != "names"}
+        np.savez(tmp, names=np.array(train), **layers)
+        os.replace(tmp, path)
+    return path
