@@ -2,7 +2,7 @@
 (MERL) BRDFs from few samples, per fold and per material class.
 
     .venv/bin/python bench/measured_bench.py [--quick] [--folds K] [--bases a,b,...]
-                                             [--seeds S] [--out PATH]
+                                             [--seeds S] [--criterion C] [--out PATH]
 
 The 80 measured materials of the pack (``testkit.measured.PACK``, Sztrajman et al.
 2021 networks of MERL) are split into 5 stratified folds of 16
@@ -17,7 +17,8 @@ saw it:
 
 Per held-out material: reconstruction (``core.method.reconstruct`` with its
 defaults: p = k, eta by evidence; exact values at the cells, no photos) from
-n = 6 and n = 20 condition-optimal cells
+n = 6 and n = 20 optimal cells (``core.method.sampling.optimal_cells``, the
+criterion ``--criterion``: ``risk``, the default, or the paper's ``condition``)
 and from 2000 random cells, seeds 0 and 1 (``--seeds S``: 0 to S - 1); score:
 rendered-sphere relative RMSE under four lights (``render.REFERENCE_LIGHT`` and
 ``metrics.SPHERE_LIGHTS``). Each cell set's condition number (``condition``) is
@@ -51,11 +52,11 @@ SETTINGS = (("n=6", 6, "optimal"), ("n=20", 20, "optimal"), ("2000 random", 2000
 BASES = ("analytic", "measured", "union")
 
 
-def _cells(B, kind, n, seed):
+def _cells(B, kind, n, seed, criterion):
     candidates = merl.cells_from_linear(B.cells)
     rng = np.random.default_rng(seed)
     if kind == "optimal":
-        return sampling.optimal_cells(B, candidates, n, rng)
+        return sampling.optimal_cells(B, candidates, n, rng, criterion=criterion)
     return candidates[rng.choice(len(candidates), n, replace=False)]
 
 
@@ -86,6 +87,8 @@ def main(argv=None) -> int:
                         help=f"comma-separated, of {', '.join(BASES)}")
     parser.add_argument("--seeds", type=int, default=None,
                         help="sampler seeds 0 to S - 1 (default 2; --quick 1)")
+    parser.add_argument("--criterion", default="risk", choices=sampling.CRITERIA,
+                        help="the sampler's criterion (default risk)")
     parser.add_argument("--out", default=None, help="JSON path (default bench/results/...)")
     args = parser.parse_args(argv)
     if args.seeds is not None and args.seeds < 1:
@@ -125,8 +128,8 @@ def main(argv=None) -> int:
                                               names=[s["name"] for s in specs] + train)
             builds.append({"fold": f, "basis": "union", "tables": len(makers),
                            "seconds": time.perf_counter() - t0})
-        cells = {(b, label, seed): _cells(B, kind, n, seed) for b, B in built.items()
-                 for label, n, kind in SETTINGS for seed in seeds}
+        cells = {(b, label, seed): _cells(B, kind, n, seed, args.criterion)
+                 for b, B in built.items() for label, n, kind in SETTINGS for seed in seeds}
         condition = {key: sampling.acquisition_condition(
             built[key[0]].Q, built[key[0]].rows_of(merl.linear_index(c)))
             for key, c in cells.items()}
@@ -159,6 +162,7 @@ def main(argv=None) -> int:
                         for n in sorted({r["material"] for r in rows})} for b in bases}
     per_seed, condition_vs_error = _seed_spread(rows, bases, len(folds), seeds)
     doc = {"machine": common.machine_end(info), "folds": folds, "seeds": list(seeds),
+           "criterion": args.criterion,
            "per_seed": per_seed, "condition_vs_error": condition_vs_error,
            "lights": LIGHTS.tolist(), "summary_median_sphere_rel_rmse": summary,
            "per_fold": per_fold, "per_class": per_class, "per_material_n20": per_material,
@@ -216,7 +220,8 @@ def plot(doc: dict, path) -> None:
     axes[0].set_xticks(np.arange(len(labels)) + 0.4 - width / 2, labels)
     axes[0].set_title("median rendered-sphere error, held-out measured materials", fontsize=9)
     axes[1].set_xticks(np.arange(len(classes)) + 0.4 - width / 2, classes)
-    axes[1].set_title("per class, n = 20 condition-optimal cells", fontsize=9)
+    axes[1].set_title(f"per class, n = 20 {doc.get('criterion', 'condition')}-optimal cells",
+                      fontsize=9)
     for ax in axes:
         ax.set_yscale("log")
         ax.legend(fontsize=8)

@@ -179,7 +179,8 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
         col.prop(s, "clip_level")
         col.prop(s, "min_cosine")
         col = layout.column(heading="Sampling")
-        for name in ("samples", "trials", "subset_fraction", "min_reliable_samples"):
+        for name in ("samples", "sampler", "trials", "subset_fraction",
+                     "min_reliable_samples"):
             col.prop(s, name)
         col = layout.column(heading="Selection")
         col.prop(s, "kl_path")

@@ -273,7 +273,14 @@ class BRDFSettings(PropertyGroup):
                ("CUSTOM", "Custom", "Your own samples, trials and selection")])
     samples: IntProperty(name="BRDF Samples", default=_BALANCED["samples"], min=1, soft_max=200,
                          update=_preset_value_changed,
-                         description="Condition-optimal BRDF samples per trial (paper: 6)")
+                         description="Optimal BRDF samples per trial (paper: 6)")
+    sampler: EnumProperty(
+        name="Sampler", default="RISK",
+        description="The criterion that chooses each trial's BRDF samples",
+        items=[("RISK", "Bayes Risk", "Minimise the reconstruction's expected error "
+                "(measured better on held-out measured materials)"),
+               ("CONDITION", "Condition Number (paper)", "Minimise the condition number "
+                "of the samples' basis rows, as the paper and Nielsen et al. do")])
     trials: IntProperty(name="Trials", default=_BALANCED["trials"], min=1, soft_max=128,
                         update=_preset_value_changed,
                         description="Random-subset reconstructions; KL picks one")
@@ -367,7 +374,7 @@ def pipeline_settings(settings):
         n_samples=settings.samples, n_trials=settings.trials,
         subset_fraction=settings.subset_fraction,
         min_reliable_samples=settings.min_reliable_samples, kl_bins=settings.kl_bins,
-        seed=settings.seed)
+        seed=settings.seed, sampler=settings.sampler.lower())
 
 
 def settings_dict(settings) -> dict:

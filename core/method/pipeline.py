@@ -2,7 +2,7 @@
 
 This is Ono et al. (2017) Fig. 2 after the geometry exists: observations
 (``core.method.observations``), the reliable region (Sec. 3.1, ``core.method.reliable``),
-random-subset reconstructions from condition-optimal samples (Sec. 3.2,
+random-subset reconstructions from optimal samples (Sec. 3.2,
 ``core.method.reliable.trial_candidates``) and selection by the KL divergence of
 rendered against photographed intensities (``core.method.selection``, the fast numpy
 path). It knows nothing of Blender: the operators gather the arrays (photos
@@ -29,7 +29,7 @@ import numpy as np
 from ..brdf.basis import Basis
 from ..progress import Cancelled as Cancelled  # re-exported: what run() raises
 from ..progress import check
-from . import observations, reliable, selection
+from . import observations, reliable, sampling, selection
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -62,7 +62,9 @@ class PhotoInput:
 class PipelineSettings:
     """Every setting of a run (the panel's and the job file's ``[settings]``).
 
-    n_samples: condition-optimal MERL cells per trial (the paper uses 6).
+    n_samples: optimal MERL cells per trial (the paper uses 6). sampler: the
+    criterion that chooses them, "risk" (Bayes risk of the reconstruction, the
+    default) or "condition" (the paper's condition number); ``core.method.sampling``.
     n_trials: random-subset reconstructions per region. subset_fraction: share
     of the reliable samples each trial draws from. min_reliable_samples: a
     region with fewer reliable samples is skipped. kl_bins: histogram bins of
@@ -77,6 +79,7 @@ class PipelineSettings:
     min_reliable_samples: int = 20
     kl_bins: int = 64
     seed: int = 0
+    sampler: str = "risk"
 
     def __post_init__(self):
         for name in ("n_samples", "n_trials", "min_reliable_samples", "kl_bins"):
@@ -84,6 +87,9 @@ class PipelineSettings:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
         if not 0 < self.subset_fraction <= 1:
             raise ValueError(f"subset_fraction must be in (0, 1], got {self.subset_fraction}")
+        if self.sampler not in sampling.CRITERIA:
+            raise ValueError(f"sampler must be one of {', '.join(sampling.CRITERIA)}, "
+                             f"got {self.sampler!r}")
 
 
 @dataclasses.dataclass(eq=False)
@@ -106,7 +112,7 @@ class RegionResult:
     observed_pixels, reliable_pixels: (N, 3) int64 (view, row, column) of the
     region's samples before and after the reliable-region stages (for pictures).
     timings: wall seconds per stage of this region: ``reliable``, ``sampling``
-    (condition-optimal cell choice), ``reconstruction``, ``selection`` (KL).
+    (optimal cell choice), ``reconstruction``, ``selection`` (KL).
     """
 
     region: int
@@ -256,7 +262,8 @@ def run_region(
             progress(t / settings.n_trials, f"region {region}: trial {t + 1}/{settings.n_trials}")
         trials += reliable.trial_candidates(basis, cand, settings.n_samples, 1, child,
                                               settings.subset_fraction, report.peaks,
-                                              timings=result.timings)
+                                              timings=result.timings,
+                                              criterion=settings.sampler)
     check(cancelled)
     if progress:
         progress(1.0, f"region {region}: KL selection over {len(trials)} trials")

@@ -28,7 +28,7 @@ assumptions keep the trustworthy samples, each stage switchable and counted:
 
 ``reliable_candidates`` runs the stages; ``trial_candidates`` then makes the
 paper's several reconstructions from random subsets (Sec. 3.2), each from
-condition-optimal cells (``core.method.sampling``), seeded.
+optimal cells (``core.method.sampling``: Bayes risk or condition number), seeded.
 """
 
 from __future__ import annotations
@@ -339,11 +339,13 @@ def trial_candidates(
     subset_fraction: float = 0.5,
     peaks: np.ndarray | None = None,
     timings: dict | None = None,
+    criterion: str = "risk",
 ) -> list[tuple[reconstruct.Reconstruction, np.ndarray]]:
     """The paper's random-subset reconstructions (Sec. 3.2) for one region.
 
     Each trial draws ``subset_fraction`` of the candidates at random, chooses
-    ``n_samples`` condition-optimal cells among them, and reconstructs from
+    ``n_samples`` optimal cells among them (``criterion``: ``"risk"`` or
+    ``"condition"``, see ``sampling.optimal_cells``), and reconstructs from
     every drawn sample in those cells (plus the ``peaks`` samples, always).
     Returns ``[(Reconstruction, sample indices used)]``, one per trial; the
     same seed gives the same trials. ``timings``: if given, the wall seconds of
@@ -360,7 +362,8 @@ def trial_candidates(
         t0 = time.perf_counter()
         size = max(int(round(subset_fraction * len(candidates))), min(n_samples, len(candidates)))
         drawn = np.sort(child.choice(len(candidates), size=size, replace=False))
-        cells = sampling.optimal_cells(basis, candidates.cells[drawn], n_samples, child)
+        cells = sampling.optimal_cells(basis, candidates.cells[drawn], n_samples, child,
+                                       criterion=criterion)
         chosen = np.isin(merl.linear_index(candidates.cells[drawn]), merl.linear_index(cells))
         used = np.union1d(drawn[chosen], peaks)
         t1 = time.perf_counter()

@@ -186,6 +186,20 @@ def test_job_angle_at_its_limits_is_taken(scene, value):
     assert scene.brdf.peak_max_angle == pytest.approx(math.radians(value), rel=1e-6, abs=1e-9)
 
 
+def test_job_sampler_reaches_the_pipeline(scene):
+    assert props.pipeline_settings(scene.brdf).sampler == "risk"  # the default
+    job_module.apply(_job(scene, {"sampler": "CONDITION"}), scene)
+    assert props.pipeline_settings(scene.brdf).sampler == "condition"
+    assert props.settings_dict(scene.brdf)["sampler"] == "CONDITION"
+
+
+def test_job_unknown_sampler_is_one_sentence(scene):
+    with pytest.raises(job_module.JobError) as error:
+        job_module.apply(_job(scene, {"sampler": "paper"}), scene)
+    assert str(error.value) == "setting sampler = 'paper': must be one of RISK, CONDITION"
+    assert scene.brdf.target is None
+
+
 @pytest.mark.parametrize("value", [200, -1, 181])
 def test_job_angle_out_of_range_names_degrees(scene, value):
     """Checked in degrees before anything is set (the scan is not even chosen)."""

@@ -1,5 +1,7 @@
 """The array pipeline end to end on the numpy test scene (no bpy)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from observing import lambert_table as _lambert_table
@@ -112,6 +114,23 @@ def test_bad_settings_are_rejected():
         pipeline.PipelineSettings(n_trials=0)
     with pytest.raises(ValueError, match="subset_fraction"):
         pipeline.PipelineSettings(subset_fraction=0.0)
+    with pytest.raises(ValueError, match="sampler must be one of risk, condition"):
+        pipeline.PipelineSettings(sampler="entropy")
+
+
+def test_sampler_setting_reaches_the_trials(default_basis, two_materials):
+    """The paper's condition-number sampler and the Bayes-risk one choose different
+    samples, so the tables differ; each is finite and the same seed repeats it."""
+    inputs = _inputs(two_materials)
+    tables = {}
+    for sampler in ("risk", "condition"):
+        settings = dataclasses.replace(FAST, sampler=sampler)
+        first = pipeline.run(default_basis, inputs, settings, regions=[1]).regions[0]
+        again = pipeline.run(default_basis, inputs, settings, regions=[1]).regions[0]
+        np.testing.assert_array_equal(first.table, again.table)
+        assert np.all(np.isfinite(first.table))
+        tables[sampler] = first.table
+    assert not np.array_equal(tables["risk"], tables["condition"])
 
 
 def test_lambert_scene_database_table_is_finite(default_basis):
