@@ -24,7 +24,6 @@ and seed on the 2-core machine.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 import time
@@ -90,8 +89,7 @@ def main(argv=None) -> int:
 
 
 def _run(obj, name, seed, sampler, B, inputs, truth) -> dict:
-    settings = pipeline.PipelineSettings(seed=seed)
-    settings = dataclasses.replace(settings, sampler=sampler)
+    settings = pipeline.PipelineSettings(seed=seed, sampler=sampler)
     t0 = time.perf_counter()
     region = pipeline.run(B, inputs, settings).regions[0]
     seconds = time.perf_counter() - t0
