@@ -1,5 +1,5 @@
-"""Which sampler in the photo pipeline: the Bayes-risk cells (the default) against the
-paper's condition-optimal cells, on two degraded scans.
+"""Which sampler in the photo pipeline: the Bayes-risk cells against the paper's
+condition-optimal cells (the pipeline's default), on two degraded scans.
 
     .venv/bin/python bench/sampler_bench.py [--seeds S] [--objects bunny,spot] [--quick]
 

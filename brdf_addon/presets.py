@@ -29,13 +29,11 @@ PRESETS = {
 
 # One line per preset for the panel and tooltips: what it costs and buys, as measured
 # (bench/results/tradeoff.json, "presets", 2026-12-02, the default measured basis and
-# Bayes-risk sampler: bunny capture, 3 photos of 240 x 180, median rendered-sphere
-# error over 2 analytic and 2 measured held-out materials; wall seconds per region on
-# a 2-core machine from the quieter run of that day with the paper's sampler, whose
-# cell choice was slower: the risk run's times, 5.9 / 17.8 / 116.7 s, had a test
-# suite beside them; docs/results.md).
+# the pipeline's default condition-number sampler: bunny capture, 3 photos of
+# 240 x 180, wall seconds per region on a 2-core machine, median rendered-sphere error
+# over 2 analytic and 2 measured held-out materials; docs/results.md).
 HINTS = {
-    "FAST": "20 samples x 4 trials, numpy selection: about 6 s, error 0.34",
-    "BALANCED": "20 samples x 16 trials, numpy selection: about 15 s, error 0.29",
-    "ACCURATE": "20 samples x 16 trials, Cycles selection: about 70 s, error 0.29",
+    "FAST": "20 samples x 4 trials, numpy selection: about 6 s, error 0.30",
+    "BALANCED": "20 samples x 16 trials, numpy selection: about 15 s, error 0.28",
+    "ACCURATE": "20 samples x 16 trials, Cycles selection: about 70 s, error 0.28",
 }

@@ -90,14 +90,18 @@ class Basis:
 
     def from_mapped(self, x: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
         """Inverse mapping: x (N, ...) at basis rows -> rho (N, ...) in 1/sr, >= 0, finite."""
-        c = self.cosine[rows].astype(np.float64)
-        m = self.median[rows].astype(np.float64)
+        c, m_eps = _mapping_f64(self)
+        c, m_eps = c[rows], m_eps[rows]
         shape = (-1,) + (1,) * (np.ndim(x) - 1)
         lo, hi = self.x_range
         margin = 5.0  # allow extrapolation by e^5 beyond anything seen in training
-        x = np.clip(x, lo - margin, hi + margin)
-        rho = (np.exp(x) * (m.reshape(shape) + EPS) - EPS) / c.reshape(shape)
-        return np.maximum(rho, 0.0)
+        # (exp(x) (m + EPS) - EPS) / c, in place on one float64 copy of x
+        rho = np.clip(np.asarray(x, dtype=np.float64), lo - margin, hi + margin)
+        np.exp(rho, out=rho)
+        rho *= m_eps.reshape(shape)
+        rho -= EPS
+        rho /= c.reshape(shape)
+        return np.maximum(rho, 0.0, out=rho)
 
     def table_from_rows(self, values: np.ndarray) -> np.ndarray:
         """Per-row RGB values (R, 3) as a full table (3, 90, 90, 180): cells outside the
@@ -116,6 +120,16 @@ class Basis:
         coef = np.linalg.solve(Q.T @ Q, Q.T @ b)
         x_hat = Q @ coef + self.mean.astype(np.float64)[:, None]
         return self.table_from_rows(self.from_mapped(x_hat))
+
+
+def _mapping_f64(basis: Basis) -> tuple[np.ndarray, np.ndarray]:
+    """(R,) float64 cosine weight and median + EPS of every basis row, kept after
+    first use (the inverse mapping of a full table needs them every time)."""
+    cached = basis._derived.get("mapping")
+    if cached is None:
+        cached = (basis.cosine.astype(np.float64), basis.median.astype(np.float64) + EPS)
+        basis._derived["mapping"] = cached
+    return cached
 
 
 def _row_lookup(basis: Basis) -> np.ndarray:

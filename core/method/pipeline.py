@@ -63,8 +63,10 @@ class PipelineSettings:
     """Every setting of a run (the panel's and the job file's ``[settings]``).
 
     n_samples: optimal MERL cells per trial (the paper uses 6). sampler: the
-    criterion that chooses them, "risk" (Bayes risk of the reconstruction, the
-    default) or "condition" (the paper's condition number); ``core.method.sampling``.
+    criterion that chooses them, "condition" (the paper's condition number, the
+    default: in the photo pipeline it measured as well as the risk or better,
+    docs/results.md) or "risk" (Bayes risk of the reconstruction, the core's
+    default for exact values); ``core.method.sampling``.
     n_trials: random-subset reconstructions per region. subset_fraction: share
     of the reliable samples each trial draws from. min_reliable_samples: a
     region with fewer reliable samples is skipped. kl_bins: histogram bins of
@@ -79,7 +81,7 @@ class PipelineSettings:
     min_reliable_samples: int = 20
     kl_bins: int = 64
     seed: int = 0
-    sampler: str = "risk"
+    sampler: str = "condition"
 
     def __post_init__(self):
         for name in ("n_samples", "n_trials", "min_reliable_samples", "kl_bins"):

@@ -168,13 +168,18 @@ def reconstruct(
                 coef = Vt.T @ ((s / (s**2 + e)) * beta[:, c])
                 best[c] = (log_ev[c], p, e, sigma2[c], coef)
 
+    # Expand all channels in one pass over Q: a channel with p < p_max has zero
+    # coefficients beyond p, so each block of Q is converted to float64 once.
+    p_max = max(best[c][1] for c in range(3))
+    coefs = np.zeros((p_max, 3))
+    for c in range(3):
+        coefs[:best[c][1], c] = best[c][4]
     mean = basis.mean.astype(np.float64)
     x_table = np.empty((len(basis.cells), 3))
-    for c in range(3):
-        p, coef = best[c][1], best[c][4]
-        for start in range(0, len(basis.cells), _ROW_BLOCK):
-            sl = slice(start, start + _ROW_BLOCK)
-            x_table[sl, c] = basis.Q[sl, :p].astype(np.float64) @ coef + mean[sl]
+    for start in range(0, len(basis.cells), _ROW_BLOCK):
+        sl = slice(start, start + _ROW_BLOCK)
+        np.matmul(basis.Q[sl, :p_max].astype(np.float64), coefs, out=x_table[sl])
+        x_table[sl] += mean[sl, None]
     rho_rows = basis.from_mapped(x_table)
     return Reconstruction(
         table=basis.table_from_rows(rho_rows),

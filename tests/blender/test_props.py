@@ -187,16 +187,16 @@ def test_job_angle_at_its_limits_is_taken(scene, value):
 
 
 def test_job_sampler_reaches_the_pipeline(scene):
-    assert props.pipeline_settings(scene.brdf).sampler == "risk"  # the default
-    job_module.apply(_job(scene, {"sampler": "CONDITION"}), scene)
-    assert props.pipeline_settings(scene.brdf).sampler == "condition"
-    assert props.settings_dict(scene.brdf)["sampler"] == "CONDITION"
+    assert props.pipeline_settings(scene.brdf).sampler == "condition"  # the default
+    job_module.apply(_job(scene, {"sampler": "RISK"}), scene)
+    assert props.pipeline_settings(scene.brdf).sampler == "risk"
+    assert props.settings_dict(scene.brdf)["sampler"] == "RISK"
 
 
 def test_job_unknown_sampler_is_one_sentence(scene):
     with pytest.raises(job_module.JobError) as error:
         job_module.apply(_job(scene, {"sampler": "paper"}), scene)
-    assert str(error.value) == "setting sampler = 'paper': must be one of RISK, CONDITION"
+    assert str(error.value) == "setting sampler = 'paper': must be one of CONDITION, RISK"
     assert scene.brdf.target is None
 
 
