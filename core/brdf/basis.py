@@ -103,6 +103,11 @@ class Basis:
         rho /= c.reshape(shape)
         return np.maximum(rho, 0.0, out=rho)
 
+    def source_rows(self, linear: np.ndarray) -> np.ndarray:
+        """Basis row each flat cell index (N,) takes its value from in
+        :meth:`table_from_rows` (its own row inside the basis) -> (N,) int64."""
+        return _fill_source(self)[np.asarray(linear, dtype=np.int64)]
+
     def table_from_rows(self, values: np.ndarray) -> np.ndarray:
         """Per-row RGB values (R, 3) as a full table (3, 90, 90, 180): cells outside the
         basis take the value of the basis cell ``merl.fill_unmeasured`` would copy."""

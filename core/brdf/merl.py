@@ -441,19 +441,36 @@ def evaluate(
     n, l, v = (np.asarray(x, dtype=np.float64).reshape(-1, 3) for x in (n, l, v))
     if not (len(n) == len(l) == len(v)):
         raise ValueError("n, l and v must have the same number of rows")
+    if interpolation not in ("nearest", "trilinear"):
+        raise ValueError(f"interpolation must be 'nearest' or 'trilinear', got {interpolation!r}")
     if np.isnan(table).any():
         table = fill_unmeasured(table)
+    flat = table.reshape(3, -1)
+    if interpolation == "nearest":
+        index, above = lookup(n, l, v)
+        return lookup_values(flat[:, index].T, above)
     wi = to_local(n, l)
     wo = to_local(n, v)
     above = (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
-    theta_h, theta_d, phi_d = half_diff_from_dirs(wi, wo)
-    flat = table.reshape(3, -1)
-    if interpolation == "nearest":
-        rho = flat[:, linear_index(cells_from_angles(theta_h, theta_d, phi_d))].T
-    elif interpolation == "trilinear":
-        rho = _trilinear(flat, theta_h, theta_d, phi_d)
-    else:
-        raise ValueError(f"interpolation must be 'nearest' or 'trilinear', got {interpolation!r}")
+    rho = _trilinear(flat, *half_diff_from_dirs(wi, wo))
+    return lookup_values(rho, above)
+
+
+def lookup(n: np.ndarray, l: np.ndarray, v: np.ndarray):  # noqa: E741
+    """The nearest cells of rho(n, l, v): (N,) int64 flat cell index of each
+    direction pair and (N,) bool ``above`` (n.l > 0 and n.v > 0). n, l, v: (N, 3)
+    float64 unit vectors in one frame. ``evaluate(..., "nearest")`` is
+    ``lookup_values(table.reshape(3, -1)[:, index].T, above)``; a caller that
+    evaluates many tables at the same directions looks them up once."""
+    wi = to_local(n, l)
+    wo = to_local(n, v)
+    above = (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
+    return linear_index(cells_from_angles(*half_diff_from_dirs(wi, wo))), above
+
+
+def lookup_values(rho: np.ndarray, above: np.ndarray) -> np.ndarray:
+    """rho (N, 3) looked up at a direction pair's cell -> (N, 3) float64, zero below
+    the horizon (``above`` False) and where the table held NaN or +Inf."""
     return np.where(above[:, None], np.nan_to_num(rho, nan=0.0, posinf=0.0), 0.0)
 
 

@@ -94,6 +94,23 @@ class PipelineSettings:
                              f"got {self.sampler!r}")
 
 
+class CandidateTables(Sequence):
+    """Every trial's table, expanded from its coefficients when asked for
+    (``[t]``: (3, 90, 90, 180) float64, 1/sr; not kept, so holding the trials costs
+    their coefficients, not 16 full tables). ``reconstructions``: the trials."""
+
+    def __init__(self, reconstructions: list):
+        self.reconstructions = list(reconstructions)
+
+    def __len__(self) -> int:
+        return len(self.reconstructions)
+
+    def __getitem__(self, t):
+        if isinstance(t, slice):
+            return [self[i] for i in range(*t.indices(len(self)))]
+        return self.reconstructions[t].expand()
+
+
 @dataclasses.dataclass(eq=False)
 class RegionResult:
     """Outcome for one region.
@@ -108,13 +125,16 @@ class RegionResult:
     skipped_assumptions: per reliable stage, whether the data rejected its
     assumption in this region (see ``ReliableSettings``).
     table: (3, 90, 90, 180) float64 of the chosen trial (None when skipped).
-    candidates: every trial's table as float32, for the Cycles selection path.
+    candidates: every trial's table (:class:`CandidateTables`, expanded on access),
+    for the Cycles selection path.
     kl: (T,) KL score per trial, nats; winner: index of the chosen trial.
     trials: per-trial summaries (condition number, samples used, eta).
     observed_pixels, reliable_pixels: (N, 3) int64 (view, row, column) of the
     region's samples before and after the reliable-region stages (for pictures).
     timings: wall seconds per stage of this region: ``reliable``, ``sampling``
-    (optimal cell choice), ``reconstruction``, ``selection`` (KL).
+    (optimal cell choice), ``reconstruction`` (the fits), ``selection`` (KL, from
+    each trial's coefficients at the photos' cells), ``expansion`` (the chosen
+    trial's full table).
     """
 
     region: int
@@ -270,14 +290,16 @@ def run_region(
     if progress:
         progress(1.0, f"region {region}: KL selection over {len(trials)} trials")
     t0 = time.perf_counter()
-    chosen = selection.select_by_kl([rec.table for rec, _ in trials],
+    chosen = selection.select_by_kl([rec for rec, _ in trials],
                                     region_views(inputs, region), n_bins=settings.kl_bins)
     result.timings["selection"] = time.perf_counter() - t0
     result.status = "ok"
     result.kl = chosen.kl
     result.winner = int(chosen.winner)
-    result.table = trials[chosen.winner][0].table
-    result.candidates = [rec.table.astype(np.float32) for rec, _ in trials]
+    t0 = time.perf_counter()
+    result.table = trials[chosen.winner][0].table  # the only full table expanded
+    result.timings["expansion"] = time.perf_counter() - t0
+    result.candidates = CandidateTables([rec for rec, _ in trials])
     result.trials = [dict(rec.summary(), samples_used=int(len(used))) for rec, used in trials]
     return result
 

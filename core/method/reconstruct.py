@@ -39,6 +39,7 @@ basis (unmeasured in training) are dropped and counted.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -51,11 +52,16 @@ P_GRID = (1, 2, 3, 4, 5, 6, 8, 10, 12, 14, 16, 20, 24, 28, 32, 40, 48, 64, 80, 9
 _ROW_BLOCK = 1 << 17
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(eq=False)
 class Reconstruction:
-    """Result of :func:`reconstruct`.
+    """Result of :func:`reconstruct`: the fitted coefficients, and the table from them.
 
-    table: (3, 90, 90, 180) float64 BRDF in 1/sr, finite and >= 0 everywhere.
+    basis: the basis fitted in. coefficients: (p_max, 3) float64 per channel
+    (zero beyond that channel's p); the mapped table is
+    ``Q[:, :p_max] coefficients + mean``.
+    table: (3, 90, 90, 180) float64 BRDF in 1/sr, finite and >= 0 everywhere,
+    expanded on first use (a 1.1 M x k product); :meth:`rho_at` gives the same
+    values at chosen cells without it.
     condition: condition number of ``Q[S, :min(n, k)]`` over the used cells S.
     residuals: (n, 3) fitted minus observed rho at the used cells, 1/sr.
     residuals_mapped: (n, 3) the same in the log-relative mapped space.
@@ -68,7 +74,8 @@ class Reconstruction:
     n_samples: number of input samples; n_outside: dropped as outside the basis.
     """
 
-    table: np.ndarray
+    basis: Basis = dataclasses.field(repr=False)
+    coefficients: np.ndarray
     condition: float
     residuals: np.ndarray
     residuals_mapped: np.ndarray
@@ -79,6 +86,35 @@ class Reconstruction:
     log_evidence: np.ndarray
     n_samples: int
     n_outside: int
+
+    @functools.cached_property
+    def table(self) -> np.ndarray:
+        """(3, 90, 90, 180) float64 in 1/sr, every cell (expanded once, then kept)."""
+        return self.expand()
+
+    def expand(self) -> np.ndarray:
+        """The full table (3, 90, 90, 180) float64 in 1/sr, expanded anew (not kept)."""
+        B, coefs = self.basis, self.coefficients
+        p = coefs.shape[0]
+        mean = B.mean.astype(np.float64)
+        x_table = np.empty((len(B.cells), 3))
+        # each block of Q is converted to float64 once for all three channels
+        for start in range(0, len(B.cells), _ROW_BLOCK):
+            sl = slice(start, start + _ROW_BLOCK)
+            np.matmul(B.Q[sl, :p].astype(np.float64), coefs, out=x_table[sl])
+            x_table[sl] += mean[sl, None]
+        return B.table_from_rows(B.from_mapped(x_table))
+
+    def rho_at(self, linear: np.ndarray) -> np.ndarray:
+        """rho (N, 3) float64 in 1/sr at flat cell indices (N,): the values of
+        :attr:`table` there, from N rows of the basis only."""
+        rows = self.basis.source_rows(linear)
+        return self.basis.from_mapped(self._mapped(rows), rows)
+
+    def _mapped(self, rows: np.ndarray) -> np.ndarray:
+        B, coefs = self.basis, self.coefficients
+        return (B.Q[rows, :coefs.shape[0]].astype(np.float64) @ coefs
+                + B.mean[rows].astype(np.float64)[:, None])
 
     def summary(self) -> dict:
         """JSON-friendly summary for reports."""
@@ -103,6 +139,7 @@ def reconstruct(
     eta: float | None = None,
     n_components: int | None = None,
     select_components: bool = False,
+    weights: np.ndarray | None = None,
 ) -> Reconstruction:
     """Reconstruct a full table from rho observed at MERL cells.
 
@@ -111,8 +148,11 @@ def reconstruct(
     eta: fix the regulariser (absolute) instead of choosing it by evidence.
     n_components: fix p (capped at k) instead of k (``n`` is Nielsen's rule);
     select_components: choose p by evidence instead.
-    Raises ValueError for NaN/Inf values, mismatched shapes, or when no sample
-    lies in the basis.
+    weights: (M,) relative precision of each sample, finite and >= 0 (default 1
+    each): a cell's samples are averaged with these weights and the cell weighs
+    their sum; a sample of weight 0 is left out.
+    Raises ValueError for NaN/Inf values, mismatched shapes, bad weights, or when
+    no sample lies in the basis.
     """
     cells = np.asarray(cells)
     values = np.asarray(values, dtype=np.float64)
@@ -125,6 +165,14 @@ def reconstruct(
         raise ValueError(f"values hold NaN or Inf in {bad} of {len(values)} samples")
     if len(cells) == 0:
         raise ValueError("no samples to reconstruct from")
+    if weights is not None:
+        weights = np.asarray(weights, dtype=np.float64)
+        if weights.shape != (len(cells),):
+            raise ValueError(f"weights must have shape ({len(cells)},), got {weights.shape}")
+        if not np.all(np.isfinite(weights)) or np.any(weights < 0):
+            raise ValueError("weights must be finite and >= 0")
+        if not np.any(weights > 0):
+            raise ValueError("every sample has weight 0")
 
     rows = basis.rows_of(merl.linear_index(cells))
     inside = rows >= 0
@@ -133,15 +181,25 @@ def reconstruct(
         raise ValueError(
             f"none of the {len(cells)} samples lies in a cell the basis covers"
         )
+    if weights is not None:
+        inside &= weights > 0
+        if not inside.any():
+            raise ValueError("every sample in a cell the basis covers has weight 0")
     rows, values = rows[inside], values[inside]
     x = basis.to_mapped(values, rows)  # (M, 3)
 
-    # Duplicate cells: mean in the mapped space, weight = count.
+    # Duplicate cells: (weighted) mean in the mapped space, weight = count (sum).
     urows, inverse, counts = np.unique(rows, return_inverse=True, return_counts=True)
     xu = np.zeros((len(urows), 3))
-    np.add.at(xu, inverse, x)
-    xu /= counts[:, None]
-    w = np.sqrt(counts.astype(np.float64))[:, None]
+    if weights is None:
+        np.add.at(xu, inverse, x)
+        total = counts.astype(np.float64)
+    else:
+        w_in = weights[inside]
+        np.add.at(xu, inverse, w_in[:, None] * x)
+        total = np.bincount(inverse, weights=w_in, minlength=len(urows))
+    xu /= total[:, None]
+    w = np.sqrt(total)[:, None]
     bw = w * (xu - basis.mean[urows].astype(np.float64)[:, None])
     A_full = w * basis.Q[urows].astype(np.float64)
 
@@ -168,24 +226,16 @@ def reconstruct(
                 coef = Vt.T @ ((s / (s**2 + e)) * beta[:, c])
                 best[c] = (log_ev[c], p, e, sigma2[c], coef)
 
-    # Expand all channels in one pass over Q: a channel with p < p_max has zero
-    # coefficients beyond p, so each block of Q is converted to float64 once.
     p_max = max(best[c][1] for c in range(3))
     coefs = np.zeros((p_max, 3))
     for c in range(3):
         coefs[:best[c][1], c] = best[c][4]
-    mean = basis.mean.astype(np.float64)
-    x_table = np.empty((len(basis.cells), 3))
-    for start in range(0, len(basis.cells), _ROW_BLOCK):
-        sl = slice(start, start + _ROW_BLOCK)
-        np.matmul(basis.Q[sl, :p_max].astype(np.float64), coefs, out=x_table[sl])
-        x_table[sl] += mean[sl, None]
-    rho_rows = basis.from_mapped(x_table)
-    return Reconstruction(
-        table=basis.table_from_rows(rho_rows),
+    rec = Reconstruction(
+        basis=basis,
+        coefficients=coefs,
         condition=acquisition_condition(basis.Q, urows),
-        residuals=rho_rows[urows] - basis.from_mapped(xu, urows),
-        residuals_mapped=x_table[urows] - xu,
+        residuals=np.empty((len(urows), 3)),
+        residuals_mapped=np.empty((len(urows), 3)),
         cells=merl.cells_from_linear(basis.cells[urows]),
         eta=np.array([best[c][2] for c in range(3)]),
         n_components=np.array([best[c][1] for c in range(3)]),
@@ -195,6 +245,10 @@ def reconstruct(
         n_samples=int(len(cells)),
         n_outside=n_outside,
     )
+    fitted = rec._mapped(urows)
+    rec.residuals[:] = basis.from_mapped(fitted, urows) - basis.from_mapped(xu, urows)
+    rec.residuals_mapped[:] = fitted - xu
+    return rec
 
 
 def _evidence(s: np.ndarray, beta: np.ndarray, b: np.ndarray, tau2: float):

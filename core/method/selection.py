@@ -171,8 +171,9 @@ def select_by_kl(
 
     Parameters
     ----------
-    tables : sequence of (3, 90, 90, 180) float
-        Candidate BRDFs (T >= 1), 1/sr.
+    tables : sequence of (3, 90, 90, 180) float, or of ``reconstruct.Reconstruction``
+        Candidate BRDFs (T >= 1), 1/sr. A reconstruction is read only at the
+        cells the views need (nearest interpolation); its table is not expanded.
     views : sequence of :class:`View`, or of mappings with the same keys
         The photos (V >= 1) with their G-buffers, light and irradiance.
     n_bins, floor, mode
@@ -232,20 +233,31 @@ def select_by_kl(
     bins = [photo_range(p) for p in photo_pixels]
     kl = np.zeros((len(tables), len(views)))
     renders = [] if keep_renders else None
+    # The directions and cells of each view's pixels are the same for every candidate:
+    # looked up once (nearest cells), each candidate is then read at those cells only.
+    lookups = ([_ViewLookup.of(view) for view in views] if interpolation == "nearest"
+               else None)
     for t, table in enumerate(tables):
-        table = np.asarray(table, dtype=np.float64)
-        if table.shape != (3, *merl.SHAPE):
-            raise ValueError(
-                f"tables[{t}] must have shape (3, 90, 90, 180), got {table.shape}"
-            )
-        if np.isnan(table).any():  # fill once here, not once per view in merl.evaluate
-            table = merl.fill_unmeasured(table)
+        if lookups is not None and hasattr(table, "rho_at"):
+            source = table.rho_at  # a Reconstruction: no full table needed
+        else:
+            table = np.asarray(getattr(table, "table", table), dtype=np.float64)
+            if table.shape != (3, *merl.SHAPE):
+                raise ValueError(
+                    f"tables[{t}] must have shape (3, 90, 90, 180), got {table.shape}"
+                )
+            if np.isnan(table).any():  # fill once here, not once per view
+                table = merl.fill_unmeasured(table)
+            source = _TableSource(table.reshape(3, -1))
         row = []
         for v, view in enumerate(views):
-            image = shade_gbuffer(
-                table, view.normal, view.visibility, view.mask, view.position,
-                view.camera_center, view.light, view.irradiance, interpolation,
-            )
+            if lookups is not None:
+                image = lookups[v].render(source)
+            else:
+                image = shade_gbuffer(
+                    table, view.normal, view.visibility, view.mask, view.position,
+                    view.camera_center, view.light, view.irradiance, interpolation,
+                )
             kl[t, v] = kl_divergence(
                 photo_pixels[v], image[keep[v]], n_bins=n_bins, floor=floor, mode=mode,
                 range=bins[v],
@@ -267,6 +279,61 @@ def select_by_kl(
 
 
 # ----------------------------------------------------------------------------- helpers
+@dataclass(frozen=True)
+class _TableSource:
+    """A full table read at flat cell indices: ``source(index) -> rho (N, 3)``."""
+
+    flat: np.ndarray  # (3, 1458000)
+
+    def __call__(self, index: np.ndarray) -> np.ndarray:
+        return self.flat[:, index].T
+
+
+@dataclass(frozen=True)
+class _ViewLookup:
+    """What :func:`shade_gbuffer` computes for a view before it reads the table:
+    the lit pixels, their nearest cells, and the shading factors; ``render(source)``
+    finishes it for a candidate given as ``source(flat cell indices) -> rho (N, 3)``,
+    the same image to the last bit."""
+
+    shape: tuple
+    rows: np.ndarray
+    cols: np.ndarray
+    index: np.ndarray
+    above: np.ndarray
+    cos: np.ndarray
+    irradiance: np.ndarray
+    visibility: np.ndarray
+
+    @classmethod
+    def of(cls, view: View) -> _ViewLookup:
+        normal, visibility, mask, position, camera_center, light, irradiance = (
+            _check_gbuffer(view.normal, view.visibility, view.mask, view.position,
+                           view.camera_center, view.light, view.irradiance))
+        n = normal[mask]
+        n_len = np.linalg.norm(n, axis=1, keepdims=True)
+        n = np.divide(n, n_len, out=np.zeros_like(n), where=n_len > 0.0)
+        lit = (n @ light > 0.0) & (visibility[mask] > 0.0)
+        n = n[lit]
+        v = render.view_directions(camera_center, position[mask][lit])
+        l = np.broadcast_to(light, n.shape)  # noqa: E741 - the paper's name
+        index, above = merl.lookup(n, l, v)
+        rows, cols = np.nonzero(mask)
+        return cls(shape=(*mask.shape, 3), rows=rows[lit], cols=cols[lit], index=index,
+                   above=above, cos=np.clip(np.sum(n * l, axis=1), 0.0, None),
+                   irradiance=np.asarray(irradiance, dtype=np.float64),
+                   visibility=visibility[mask][lit])
+
+    def render(self, source) -> np.ndarray:
+        image = np.zeros(self.shape)
+        if len(self.index):
+            rho = merl.lookup_values(source(self.index), self.above)
+            radiance = rho * self.cos[:, None] * self.irradiance
+            radiance *= self.visibility[:, None]
+            image[self.rows, self.cols] = radiance
+        return image
+
+
 def photo_range(pixels: np.ndarray):
     """(lo, hi) of the positive photo values (all channels), or None if none is."""
     positive = pixels[pixels > 0.0]

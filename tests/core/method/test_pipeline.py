@@ -71,6 +71,18 @@ def test_same_seed_same_result(default_basis, two_materials):
     np.testing.assert_array_equal(a.regions[0].kl, b.regions[0].kl)
 
 
+def test_only_the_chosen_trial_is_expanded_and_candidates_expand_on_access(
+        default_basis, two_materials):
+    """The trials are kept as coefficients: the chosen one's table is the region's,
+    the others are expanded when asked for (``candidates[t]``), each finite."""
+    region = pipeline.run(default_basis, _inputs(two_materials), FAST, regions=[0]).regions[0]
+    assert isinstance(region.candidates, pipeline.CandidateTables)
+    assert len(region.candidates) == FAST.n_trials
+    np.testing.assert_array_equal(region.candidates[region.winner], region.table)
+    assert all(np.all(np.isfinite(c)) for c in region.candidates[:])
+    assert {"reconstruction", "selection", "expansion"} <= set(region.timings)
+
+
 def test_unseen_region_is_skipped_not_guessed(default_basis, two_materials):
     result = pipeline.run(default_basis, _inputs(two_materials), FAST, regions=[0, 5])
     assert result.regions[0].status == "ok"

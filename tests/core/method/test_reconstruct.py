@@ -209,3 +209,61 @@ def test_extreme_float32_input(default_basis, heldout_tables):
     assert r32.table.dtype == np.float64
     assert np.all(np.isfinite(r32.table))
     assert _sphere_error(r32.table, r64.table) < 1e-3
+
+
+# ------------------------------------------------------------------ weights, lazy table
+def test_integer_weights_repeat_samples_and_weight_zero_drops_them(default_basis,
+                                                                  heldout_tables):
+    """A sample of weight 2 is the same sample given twice; a sample of weight 0 is the
+    sample left out (same table to 1e-12; eta by evidence, so the weights also reach
+    the noise estimate)."""
+    B = default_basis
+    truth = heldout_tables["heldout_gold_medium"]
+    cells = sampling.optimal_cells(B, _all_cells(B), 12, 0)
+    values = _observe(truth, cells) * np.linspace(0.9, 1.1, 12)[:, None]  # not in span
+    w = np.ones(12)
+    w[3] = 2.0
+    doubled = reconstruct.reconstruct(B, np.concatenate([cells, cells[3:4]]),
+                                      np.concatenate([values, values[3:4]]))
+    weighted = reconstruct.reconstruct(B, cells, values, weights=w)
+    np.testing.assert_allclose(weighted.table, doubled.table, rtol=1e-12, atol=1e-14)
+    w[3] = 0.0
+    dropped = reconstruct.reconstruct(B, cells, values, weights=w)
+    without = reconstruct.reconstruct(B, np.delete(cells, 3, axis=0),
+                                      np.delete(values, 3, axis=0))
+    np.testing.assert_allclose(dropped.table, without.table, rtol=1e-12, atol=1e-14)
+    assert len(dropped.cells) == 11
+
+
+@pytest.mark.parametrize("weights, message", [
+    (np.ones(5), "weights must have shape"),
+    (np.r_[np.ones(5), -1.0], "finite and >= 0"),
+    (np.r_[np.ones(5), np.nan], "finite and >= 0"),
+    (np.zeros(6), "every sample has weight 0"),
+])
+def test_bad_weights_are_refused(default_basis, heldout_tables, weights, message):
+    B = default_basis
+    cells = _all_cells(B)[:: len(B.cells) // 6][:6]
+    values = _observe(heldout_tables["heldout_gold_medium"], cells)
+    with pytest.raises(ValueError, match=message):
+        reconstruct.reconstruct(B, cells, values, weights=weights)
+
+
+def test_rho_at_is_the_table_at_those_cells_inside_and_outside_the_basis(default_basis,
+                                                                          heldout_tables):
+    """The fit is kept as coefficients; ``rho_at`` reads them at chosen cells, the
+    full table is expanded once on first use and ``expand`` gives it anew."""
+    B = default_basis
+    truth = heldout_tables["heldout_rough_plastic"]
+    cells = sampling.optimal_cells(B, _all_cells(B), 20, 1)
+    rec = reconstruct.reconstruct(B, cells, _observe(truth, cells))
+    assert rec.coefficients.shape == (B.n_components, 3)
+    rng = np.random.default_rng(4)
+    outside = np.setdiff1d(np.arange(merl.N_CELLS), B.cells)
+    linear = np.concatenate([rng.choice(B.cells, 3000), rng.choice(outside, 3000)])
+    table = rec.table
+    assert rec.table is table  # kept
+    np.testing.assert_allclose(rec.rho_at(linear), table.reshape(3, -1)[:, linear].T,
+                               rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(rec.expand(), table)
+    assert np.all(np.isfinite(table)) and table.min() >= 0.0

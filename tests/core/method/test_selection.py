@@ -266,3 +266,25 @@ def test_select_bad_input(gbuffer, make, message):
     kwargs = args[2] if len(args) == 3 else {}
     with pytest.raises(ValueError, match=message):
         select_by_kl(args[0], args[1], **kwargs)
+
+
+def test_reconstructions_are_scored_at_the_photos_cells_like_their_tables(
+        default_basis, heldout_tables):
+    """Candidates given as reconstructions are read only at the cells the views need;
+    the KL scores equal those of their expanded tables, and the winner is the same."""
+    from brdf_reconstruct.core.method import reconstruct, sampling
+
+    B = default_basis
+    truth = heldout_tables["heldout_glossy_plastic"]
+    views = make_views(truth, sphere_gbuffer(48))
+    cand = merl.cells_from_linear(B.cells)
+    recs = []
+    for n, seed in ((6, 0), (20, 1), (40, 2)):
+        cells = sampling.optimal_cells(B, cand, n, seed)
+        recs.append(reconstruct.reconstruct(
+            B, cells, truth.reshape(3, -1)[:, merl.linear_index(cells)].T))
+    lazy = select_by_kl(recs, views)
+    assert "table" not in vars(recs[0])  # no full table was expanded for the scores
+    full = select_by_kl([r.expand() for r in recs], views)
+    np.testing.assert_allclose(lazy.kl, full.kl, rtol=1e-9)
+    assert lazy.winner == full.winner
