@@ -261,6 +261,46 @@ def measured_basis_without(pack, held):
 # ------------------------------------------------------------ held-out materials
 
 
+PIPELINE_OBJECTS = ("bunny", "spot")
+
+
+def pipeline_bench_arguments(doc: str, argv, default_seeds: int, quick_help: str):
+    """Parse a photo-pipeline bench's ``--seeds S``, ``--objects bunny,spot`` and
+    ``--quick``. Returns ``(args, objects)``, or ``(None, exit status)`` after one
+    error line (2: a bad argument, 1: the measured pack is missing)."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=doc,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seeds", type=int, default=default_seeds,
+                        help=f"seeds 0 to S - 1 (default {default_seeds})")
+    parser.add_argument("--objects", default=",".join(PIPELINE_OBJECTS),
+                        help="of bunny, spot")
+    parser.add_argument("--quick", action="store_true", help=quick_help)
+    args = parser.parse_args(argv)
+    if args.seeds < 1:
+        print("error: --seeds must be at least 1", file=sys.stderr)
+        return None, 2
+    objects = listed(args.objects, PIPELINE_OBJECTS, "--objects")
+    if objects is None:
+        return None, 2
+    if measured_pack_or_error() is None:
+        return None, 1
+    return args, objects
+
+
+def pipeline_materials(quick: bool = False) -> list[str]:
+    """The held-out materials the photo-pipeline benches score: the 12 analytic ones
+    and one measured material per class (``testkit.measured.one_per_class``);
+    ``quick``: the first 3 and 2."""
+    from brdf_reconstruct.core.brdf import database, nbrdf
+    from testkit import measured
+
+    analytic = [s["name"] for s in database.heldout_specs()]
+    drawn = measured.one_per_class(nbrdf.load(measured.PACK).names)
+    return analytic[:3] + drawn[:2] if quick else analytic + drawn
+
+
 def is_measured(name: str) -> bool:
     """True for a material of the measured pack, False for an analytic held-out one
     (``heldout_*`` of ``core.brdf.database.heldout_specs``)."""

@@ -23,7 +23,6 @@ and seed on the 2-core machine.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -32,34 +31,17 @@ import capture_arrays
 import common
 import numpy as np
 
-from brdf_reconstruct.core.brdf import database, metrics, nbrdf
+from brdf_reconstruct.core.brdf import metrics
 from brdf_reconstruct.core.method import pipeline, sampling
 from testkit import measured
 
-OBJECTS = ("bunny", "spot")
-
-
-def materials(quick: bool) -> list[str]:
-    analytic = [s["name"] for s in database.heldout_specs()]
-    drawn = measured.one_per_class(nbrdf.load(measured.PACK).names)
-    return analytic[:3] + drawn[:2] if quick else analytic + drawn
-
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seeds", type=int, default=1, help="seeds 0 to S - 1 (default 1)")
-    parser.add_argument("--objects", default=",".join(OBJECTS), help="of bunny, spot")
-    parser.add_argument("--quick", action="store_true", help="5 materials")
-    args = parser.parse_args(argv)
-    if args.seeds < 1:
-        print("error: --seeds must be at least 1", file=sys.stderr)
-        return 2
-    objects = common.listed(args.objects, OBJECTS, "--objects")
-    if objects is None or common.measured_pack_or_error() is None:
-        return 2 if objects is None else 1
+    args, objects = common.pipeline_bench_arguments(__doc__, argv, 1, "5 materials")
+    if args is None:
+        return objects
     info = common.machine("the sampler in the photo pipeline")
-    names = materials(args.quick)
+    names = common.pipeline_materials(args.quick)
     rows = []
     for obj in objects:
         arrays = capture_arrays.gbuffers(mesh=None if obj == "bunny"

@@ -1,0 +1,208 @@
+"""What the photo pipeline gets right and wrong, per preset: the measurements issue 15
+asks for, on two degraded scans and their exact-normal floor.
+
+    .venv/bin/python bench/photo_bench.py [--seeds S] [--objects bunny,spot] [--quick]
+
+For each object (the blunted bunny of ``testkit/capture.py`` and Spot degraded the
+same way; ``capture_arrays.gbuffers``, cached), each held-out material (the 12
+analytic ones and one measured material per class, ``testkit.measured.one_per_class``;
+``--quick``: 3 and 2) and each seed, three photos of the material's table shaded on
+the true geometry with 1 % noise (``capture_arrays.photo_inputs``) go through
+``core.method.pipeline.run`` with each mode's settings (``MODES``: the Fast and
+Balanced presets' fast-KL settings and the paper's 6 samples x 16 trials; the
+Accurate preset's Cycles selection is not run here), on the degraded scan and on
+the exact scan (the truth's own G-buffers: the floor). The basis is the shipped
+default that never saw the material (``common.default_basis_without``).
+
+Per run: ``sphere`` (``metrics.sphere_error``, three evaluation lights);
+``self_consistency``, the chosen table re-rendered on the scan's G-buffers under
+the capture's light against the input photos (relative RMSE over the region's
+pixels of all photos); ``energy``, the chosen table's radiance summed over the
+photos on the true geometry over the true table's (1 = right, 0.5 = half the
+energy); ``seconds`` per region (``pipeline_reliable_trials_selection``'s share:
+reliable, sampling, trials, KL, expansion). Summaries per object, scan and mode:
+medians over materials (of the per-material median over seeds), the seed spread
+(median over materials of (max - min) / median over seeds) and the share of
+materials within 2x the exact-normal floor. Writes ``bench/results/photo.json`` and
+``photo.png`` (``--quick``: ``photo_quick.*``). About 25 minutes for 3 seeds on the
+2-core machine.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+import capture_arrays
+import common
+import numpy as np
+
+from brdf_reconstruct.core.brdf import metrics
+from brdf_reconstruct.core.method import pipeline, selection
+from testkit import measured
+
+MODES = {
+    "fast": dict(n_samples=20, n_trials=4),
+    "balanced": dict(n_samples=20, n_trials=16),
+    "paper": dict(n_samples=6, n_trials=16),
+}
+SCANS = ("scan", "exact")
+
+
+def exact_scan(arrays: dict) -> dict:
+    """The capture with the truth's G-buffers as the scan: exact normals, one region."""
+    out = dict(arrays)
+    for field in ("normal", "position", "visibility"):
+        out["scan_" + field] = arrays["truth_" + field]
+    out["scan_region"] = np.where(arrays["truth_mask"], 0, -1).astype(np.int32)
+    return out
+
+
+def main(argv=None) -> int:
+    args, objects = common.pipeline_bench_arguments(__doc__, argv, 3, "5 materials, 1 seed")
+    if args is None:
+        return objects
+    seeds = 1 if args.quick else args.seeds
+    info = common.machine("the photo pipeline per preset, issue 15's measurements")
+    names = common.pipeline_materials(args.quick)
+    rows = []
+    for obj in objects:
+        degraded = capture_arrays.gbuffers(mesh=None if obj == "bunny"
+                                           else measured.DATA / "spot.obj")
+        scans = {"scan": degraded, "exact": exact_scan(degraded)}
+        for name in names:
+            truth = common.heldout_table(name)
+            B = common.default_basis_without(name)
+            for seed in range(seeds):
+                for scan, arrays in scans.items():
+                    inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
+                    for mode in MODES if scan == "scan" else ("balanced",):
+                        rows.append(_run(obj, name, seed, scan, mode, B, arrays, inputs,
+                                         truth))
+                print(f"{obj} {name} seed {seed}: " + ", ".join(
+                    f"{r['scan']}/{r['mode']} {r['sphere']:.3f}" for r in rows[-4:]),
+                    flush=True)
+    summary = _summary(rows, objects)
+    doc = {"machine": common.machine_end(info), "materials": names, "seeds": list(range(seeds)),
+           "modes": MODES, "settings": "3 photos, 1 % noise, fast KL, the default basis",
+           "summary": summary, "runs": rows}
+    stem = "photo_quick" if args.quick else "photo"
+    path = common.write_json(common.RESULTS / f"{stem}.json", doc, arguments=vars(args))
+    plot(doc, path.with_suffix(".png"))
+    print(json.dumps(summary, indent=1))
+    print(f"-> {path}")
+    return 0
+
+
+def _run(obj, name, seed, scan, mode, B, arrays, inputs, truth) -> dict:
+    settings = pipeline.PipelineSettings(seed=seed, **MODES[mode])
+    t0 = time.perf_counter()
+    result = pipeline.run(B, inputs, settings, regions=[0])
+    wall = time.perf_counter() - t0
+    region = result.regions[0]
+    table = region.table
+    if not np.all(np.isfinite(table)):
+        raise AssertionError(f"{obj}, {name}, {scan}, {mode}: the table holds NaN or Inf")
+    num = den = chosen_energy = true_energy = 0.0
+    light = np.asarray(arrays["light"], dtype=np.float64)
+    for i, p in enumerate(inputs):
+        mask = (np.asarray(p.region) == 0) & np.all(np.isfinite(p.photo), axis=-1)
+        again = selection.shade_gbuffer(table, p.normal, p.visibility, mask, p.position,
+                                        p.camera_center, light, p.irradiance)
+        num += float(np.sum((again[mask] - p.photo[mask]) ** 2))
+        den += float(np.sum(p.photo[mask] ** 2))
+        t_mask = np.asarray(arrays["truth_mask"][i])
+        g = {k: np.asarray(arrays[k][i], dtype=np.float64)
+             for k in ("truth_normal", "truth_visibility", "truth_position")}
+        for tab, acc in ((table, "chosen"), (truth, "true")):
+            e = float(np.sum(selection.shade_gbuffer(
+                tab, g["truth_normal"], g["truth_visibility"], t_mask, g["truth_position"],
+                arrays["camera_center"][i], light, p.irradiance)))
+            if acc == "chosen":
+                chosen_energy += e
+            else:
+                true_energy += e
+    return {"object": obj, "material": name, "measured": common.is_measured(name),
+            "seed": seed, "scan": scan, "mode": mode,
+            "sphere": float(metrics.sphere_error(table, truth)),
+            "self_consistency": float(np.sqrt(num / den)) if den > 0 else float("nan"),
+            "energy": chosen_energy / true_energy if true_energy > 0 else float("nan"),
+            "seconds": float(result.timings["reliable_trials_selection"]),
+            "timings": {k: float(v) for k, v in region.timings.items()},
+            "wall": wall}
+
+
+def _summary(rows, objects) -> dict:
+    out = {}
+    for obj in objects:
+        out[obj] = {}
+        floor = _per_material(rows, obj, "exact", "balanced", "sphere")
+        for scan in SCANS:
+            for mode in MODES if scan == "scan" else ("balanced",):
+                sphere = _per_material(rows, obj, scan, mode, "sphere")
+                if not sphere:
+                    continue
+                spread = [(max(v) - min(v)) / np.median(v) for v in
+                          _per_material(rows, obj, scan, mode, "sphere", reduce=None).values()]
+                entry = {
+                    "sphere": float(np.median(list(sphere.values()))),
+                    "sphere_analytic": _median([v for m, v in sphere.items()
+                                                if not common.is_measured(m)]),
+                    "sphere_measured": _median([v for m, v in sphere.items()
+                                                if common.is_measured(m)]),
+                    "self_consistency": float(np.median(list(_per_material(
+                        rows, obj, scan, mode, "self_consistency").values()))),
+                    "energy_min": float(min(_per_material(rows, obj, scan, mode,
+                                                          "energy").values())),
+                    "energy_median": float(np.median(list(_per_material(
+                        rows, obj, scan, mode, "energy").values()))),
+                    "seed_spread": float(np.median(spread)),
+                    "seconds": float(np.median([r["seconds"] for r in rows
+                                                if r["object"] == obj and r["scan"] == scan
+                                                and r["mode"] == mode])),
+                    "within_2x_floor": float(np.mean([sphere[m] <= 2 * floor[m]
+                                                      for m in sphere])) if floor else None,
+                    "materials": len(sphere)}
+                out[obj][f"{scan}/{mode}"] = entry
+    return out
+
+
+def _per_material(rows, obj, scan, mode, key, reduce=np.median) -> dict:
+    groups: dict = {}
+    for r in rows:
+        if r["object"] == obj and r["scan"] == scan and r["mode"] == mode:
+            groups.setdefault(r["material"], []).append(r[key])
+    return {m: (float(reduce(v)) if reduce else v) for m, v in groups.items()}
+
+
+def _median(values):
+    return float(np.median(values)) if values else None
+
+
+def plot(doc: dict, path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    objects = list(doc["summary"])
+    fig, axes = plt.subplots(1, len(objects), figsize=(6 * len(objects), 5), squeeze=False)
+    for ax, obj in zip(axes[0], objects, strict=True):
+        runs = [r for r in doc["runs"] if r["object"] == obj]
+        keys = sorted({(r["scan"], r["mode"]) for r in runs}, key=lambda k: (k[0] != "scan",
+                                                                          k[1]))
+        data = [[r["sphere"] for r in runs if (r["scan"], r["mode"]) == k] for k in keys]
+        ax.boxplot(data)
+        ax.set_xticks(range(1, len(keys) + 1), [f"{s}\n{m}" for s, m in keys])
+        ax.set_yscale("log")
+        ax.set_ylabel("rendered-sphere error (every material and seed)")
+        ax.set_title(f"{obj}: photo pipeline per mode, degraded scan and exact floor",
+                     fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
