@@ -261,6 +261,15 @@ def measured_basis_without(pack, held):
 # ------------------------------------------------------------ held-out materials
 
 
+def save_figure(fig, path) -> None:
+    """Lay out, write (110 dpi) and close a bench's matplotlib figure."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 PIPELINE_OBJECTS = ("bunny", "spot")
 
 

@@ -104,33 +104,36 @@ def _run(obj, name, seed, scan, mode, B, arrays, inputs, truth) -> dict:
     table = region.table
     if not np.all(np.isfinite(table)):
         raise AssertionError(f"{obj}, {name}, {scan}, {mode}: the table holds NaN or Inf")
-    num = den = chosen_energy = true_energy = 0.0
-    light = np.asarray(arrays["light"], dtype=np.float64)
-    for i, p in enumerate(inputs):
+    num = den = 0.0
+    for p in inputs:
         mask = (np.asarray(p.region) == 0) & np.all(np.isfinite(p.photo), axis=-1)
         again = selection.shade_gbuffer(table, p.normal, p.visibility, mask, p.position,
-                                        p.camera_center, light, p.irradiance)
+                                        p.camera_center, p.light, p.irradiance)
         num += float(np.sum((again[mask] - p.photo[mask]) ** 2))
         den += float(np.sum(p.photo[mask] ** 2))
-        t_mask = np.asarray(arrays["truth_mask"][i])
-        g = {k: np.asarray(arrays[k][i], dtype=np.float64)
-             for k in ("truth_normal", "truth_visibility", "truth_position")}
-        for tab, acc in ((table, "chosen"), (truth, "true")):
-            e = float(np.sum(selection.shade_gbuffer(
-                tab, g["truth_normal"], g["truth_visibility"], t_mask, g["truth_position"],
-                arrays["camera_center"][i], light, p.irradiance)))
-            if acc == "chosen":
-                chosen_energy += e
-            else:
-                true_energy += e
+    true_energy = energy(truth, arrays, inputs)
     return {"object": obj, "material": name, "measured": common.is_measured(name),
             "seed": seed, "scan": scan, "mode": mode,
             "sphere": float(metrics.sphere_error(table, truth)),
             "self_consistency": float(np.sqrt(num / den)) if den > 0 else float("nan"),
-            "energy": chosen_energy / true_energy if true_energy > 0 else float("nan"),
+            "energy": (energy(table, arrays, inputs) / true_energy if true_energy > 0
+                       else float("nan")),
             "seconds": float(result.timings["reliable_trials_selection"]),
             "timings": {k: float(v) for k, v in region.timings.items()},
             "wall": wall}
+
+
+def energy(table, arrays, inputs) -> float:
+    """Radiance of ``table`` summed over the photos' views on the true geometry under
+    the capture's light (the photos' own irradiance), W/(m^2 sr) x pixels."""
+    total = 0.0
+    for i, p in enumerate(inputs):
+        g = {k: np.asarray(arrays[k][i], dtype=np.float64)
+             for k in ("truth_normal", "truth_visibility", "truth_position")}
+        total += float(np.sum(selection.shade_gbuffer(
+            table, g["truth_normal"], g["truth_visibility"], np.asarray(arrays["truth_mask"][i]),
+            g["truth_position"], arrays["camera_center"][i], p.light, p.irradiance)))
+    return total
 
 
 def _summary(rows, objects) -> dict:
@@ -199,9 +202,7 @@ def plot(doc: dict, path) -> None:
         ax.set_ylabel("rendered-sphere error (every material and seed)")
         ax.set_title(f"{obj}: photo pipeline per mode, degraded scan and exact floor",
                      fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    common.save_figure(fig, path)
 
 
 if __name__ == "__main__":

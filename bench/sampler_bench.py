@@ -134,14 +134,12 @@ def plot(doc: dict, path) -> None:
         ax.plot(lim, lim, "k-", lw=0.8)
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("sphere error, condition-optimal cells (the paper's)")
-        ax.set_ylabel("sphere error, Bayes-risk cells (the default)")
+        ax.set_xlabel("sphere error, condition-optimal cells (the paper's, the default)")
+        ax.set_ylabel("sphere error, Bayes-risk cells")
         ax.set_title(f"{obj}: KL-chosen trial per material and seed (below the line: "
                      "risk better)", fontsize=9)
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    common.save_figure(fig, path)
 
 
 if __name__ == "__main__":

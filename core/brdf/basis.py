@@ -82,11 +82,10 @@ class Basis:
 
     def to_mapped(self, rho: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Log-relative mapping of rho (N, ...) in 1/sr at basis rows (N,)."""
-        c = self.cosine[rows].astype(np.float64)
-        m = self.median[rows].astype(np.float64)
+        c, m_eps = _mapping_f64(self)
         shape = (-1,) + (1,) * (np.ndim(rho) - 1)
         rho = np.maximum(rho, 0.0)
-        return np.log((rho * c.reshape(shape) + EPS) / (m.reshape(shape) + EPS))
+        return np.log((rho * c[rows].reshape(shape) + EPS) / m_eps[rows].reshape(shape))
 
     def from_mapped(self, x: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
         """Inverse mapping: x (N, ...) at basis rows -> rho (N, ...) in 1/sr, >= 0, finite."""

@@ -449,11 +449,8 @@ def evaluate(
     if interpolation == "nearest":
         index, above = lookup(n, l, v)
         return lookup_values(flat[:, index].T, above)
-    wi = to_local(n, l)
-    wo = to_local(n, v)
-    above = (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
-    rho = _trilinear(flat, *half_diff_from_dirs(wi, wo))
-    return lookup_values(rho, above)
+    angles, above = _half_diff_about(n, l, v)
+    return lookup_values(_trilinear(flat, *angles), above)
 
 
 def lookup(n: np.ndarray, l: np.ndarray, v: np.ndarray):  # noqa: E741
@@ -462,10 +459,15 @@ def lookup(n: np.ndarray, l: np.ndarray, v: np.ndarray):  # noqa: E741
     float64 unit vectors in one frame. ``evaluate(..., "nearest")`` is
     ``lookup_values(table.reshape(3, -1)[:, index].T, above)``; a caller that
     evaluates many tables at the same directions looks them up once."""
+    angles, above = _half_diff_about(n, l, v)
+    return linear_index(cells_from_angles(*angles)), above
+
+
+def _half_diff_about(n, l, v):  # noqa: E741
+    """Rusinkiewicz angles of (l, v) about n, and (N,) bool n.l > 0 and n.v > 0."""
     wi = to_local(n, l)
     wo = to_local(n, v)
-    above = (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
-    return linear_index(cells_from_angles(*half_diff_from_dirs(wi, wo))), above
+    return half_diff_from_dirs(wi, wo), (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
 
 
 def lookup_values(rho: np.ndarray, above: np.ndarray) -> np.ndarray:

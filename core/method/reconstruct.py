@@ -109,12 +109,7 @@ class Reconstruction:
         """rho (N, 3) float64 in 1/sr at flat cell indices (N,): the values of
         :attr:`table` there, from N rows of the basis only."""
         rows = self.basis.source_rows(linear)
-        return self.basis.from_mapped(self._mapped(rows), rows)
-
-    def _mapped(self, rows: np.ndarray) -> np.ndarray:
-        B, coefs = self.basis, self.coefficients
-        return (B.Q[rows, :coefs.shape[0]].astype(np.float64) @ coefs
-                + B.mean[rows].astype(np.float64)[:, None])
+        return self.basis.from_mapped(_mapped_at(self.basis, self.coefficients, rows), rows)
 
     def summary(self) -> dict:
         """JSON-friendly summary for reports."""
@@ -129,6 +124,12 @@ class Reconstruction:
             "log_evidence": [float(g) for g in self.log_evidence],
             "residual_rms_mapped": float(np.sqrt(np.mean(self.residuals_mapped**2))),
         }
+
+
+def _mapped_at(basis: Basis, coefs: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The mapped table ``Q[rows, :p] coefs + mean[rows]`` (R, 3) at basis rows (R,)."""
+    return (basis.Q[rows, :coefs.shape[0]].astype(np.float64) @ coefs
+            + basis.mean[rows].astype(np.float64)[:, None])
 
 
 def reconstruct(
@@ -230,12 +231,13 @@ def reconstruct(
     coefs = np.zeros((p_max, 3))
     for c in range(3):
         coefs[:best[c][1], c] = best[c][4]
-    rec = Reconstruction(
+    fitted = _mapped_at(basis, coefs, urows)
+    return Reconstruction(
         basis=basis,
         coefficients=coefs,
         condition=acquisition_condition(basis.Q, urows),
-        residuals=np.empty((len(urows), 3)),
-        residuals_mapped=np.empty((len(urows), 3)),
+        residuals=basis.from_mapped(fitted, urows) - basis.from_mapped(xu, urows),
+        residuals_mapped=fitted - xu,
         cells=merl.cells_from_linear(basis.cells[urows]),
         eta=np.array([best[c][2] for c in range(3)]),
         n_components=np.array([best[c][1] for c in range(3)]),
@@ -245,10 +247,6 @@ def reconstruct(
         n_samples=int(len(cells)),
         n_outside=n_outside,
     )
-    fitted = rec._mapped(urows)
-    rec.residuals[:] = basis.from_mapped(fitted, urows) - basis.from_mapped(xu, urows)
-    rec.residuals_mapped[:] = fitted - xu
-    return rec
 
 
 def _evidence(s: np.ndarray, beta: np.ndarray, b: np.ndarray, tau2: float):

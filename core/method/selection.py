@@ -138,22 +138,12 @@ def shade_gbuffer(
     (H, W, 3) float64
         Radiance, W/(m^2 sr), finite and >= 0.
     """
-    normal, visibility, mask, position, camera_center, light, irradiance = _check_gbuffer(
-        normal, visibility, mask, position, camera_center, light, irradiance
-    )
-    image = np.zeros((*mask.shape, 3))
-    n = normal[mask]
-    n_len = np.linalg.norm(n, axis=1, keepdims=True)
-    n = np.divide(n, n_len, out=np.zeros_like(n), where=n_len > 0.0)
-    cos = n @ light
-    lit = (cos > 0.0) & (visibility[mask] > 0.0)
-    if not lit.any():
-        return image
-    v = render.view_directions(camera_center, position[mask][lit])
-    radiance = render.shade(table, n[lit], light, v, irradiance, interpolation)
-    radiance *= visibility[mask][lit][:, None]
-    rows, cols = np.nonzero(mask)
-    image[rows[lit], cols[lit]] = radiance
+    g = _LitPixels.of(normal, visibility, mask, position, camera_center, light, irradiance)
+    image = np.zeros(g.shape)
+    if len(g.rows):
+        radiance = render.shade(table, g.n, g.light, g.v, g.irradiance, interpolation)
+        radiance *= g.visibility[:, None]
+        image[g.rows, g.cols] = radiance
     return image
 
 
@@ -290,47 +280,66 @@ class _TableSource:
 
 
 @dataclass(frozen=True)
-class _ViewLookup:
-    """What :func:`shade_gbuffer` computes for a view before it reads the table:
-    the lit pixels, their nearest cells, and the shading factors; ``render(source)``
-    finishes it for a candidate given as ``source(flat cell indices) -> rho (N, 3)``,
-    the same image to the last bit."""
+class _LitPixels:
+    """The pixels of a G-buffer that :func:`shade_gbuffer` shades (in the mask, lit,
+    light visible): (P,) image ``rows``, ``cols``, unit normals ``n`` and view
+    directions ``v`` (P, 3), ``visibility`` (P,); the unit ``light``, the
+    ``irradiance`` and the image ``shape`` (H, W, 3)."""
 
     shape: tuple
     rows: np.ndarray
     cols: np.ndarray
-    index: np.ndarray
-    above: np.ndarray
-    cos: np.ndarray
-    irradiance: np.ndarray
+    n: np.ndarray
+    v: np.ndarray
     visibility: np.ndarray
+    light: np.ndarray
+    irradiance: np.ndarray
 
     @classmethod
-    def of(cls, view: View) -> _ViewLookup:
+    def of(cls, normal, visibility, mask, position, camera_center, light,
+           irradiance) -> _LitPixels:
         normal, visibility, mask, position, camera_center, light, irradiance = (
-            _check_gbuffer(view.normal, view.visibility, view.mask, view.position,
-                           view.camera_center, view.light, view.irradiance))
+            _check_gbuffer(normal, visibility, mask, position, camera_center, light,
+                           irradiance))
         n = normal[mask]
         n_len = np.linalg.norm(n, axis=1, keepdims=True)
         n = np.divide(n, n_len, out=np.zeros_like(n), where=n_len > 0.0)
         lit = (n @ light > 0.0) & (visibility[mask] > 0.0)
-        n = n[lit]
-        v = render.view_directions(camera_center, position[mask][lit])
-        l = np.broadcast_to(light, n.shape)  # noqa: E741 - the paper's name
-        index, above = merl.lookup(n, l, v)
         rows, cols = np.nonzero(mask)
-        return cls(shape=(*mask.shape, 3), rows=rows[lit], cols=cols[lit], index=index,
-                   above=above, cos=np.clip(np.sum(n * l, axis=1), 0.0, None),
-                   irradiance=np.asarray(irradiance, dtype=np.float64),
-                   visibility=visibility[mask][lit])
+        return cls(shape=(*mask.shape, 3), rows=rows[lit], cols=cols[lit], n=n[lit],
+                   v=render.view_directions(camera_center, position[mask][lit]),
+                   visibility=visibility[mask][lit], light=light, irradiance=irradiance)
+
+
+@dataclass(frozen=True)
+class _ViewLookup:
+    """A view's lit pixels (:class:`_LitPixels`) with their nearest cells and their
+    ``cos`` = n.l, looked up once; ``render(source)`` shades a candidate given as
+    ``source(flat cell indices) -> rho (N, 3)``: the image :func:`shade_gbuffer`
+    gives, to the last bit."""
+
+    pixels: _LitPixels
+    index: np.ndarray
+    above: np.ndarray
+    cos: np.ndarray
+
+    @classmethod
+    def of(cls, view: View) -> _ViewLookup:
+        g = _LitPixels.of(view.normal, view.visibility, view.mask, view.position,
+                          view.camera_center, view.light, view.irradiance)
+        l = np.broadcast_to(g.light, g.n.shape)  # noqa: E741 - the paper's name
+        index, above = merl.lookup(g.n, l, g.v)
+        return cls(pixels=g, index=index, above=above,
+                   cos=np.clip(np.sum(g.n * l, axis=1), 0.0, None))
 
     def render(self, source) -> np.ndarray:
-        image = np.zeros(self.shape)
+        g = self.pixels
+        image = np.zeros(g.shape)
         if len(self.index):
             rho = merl.lookup_values(source(self.index), self.above)
-            radiance = rho * self.cos[:, None] * self.irradiance
-            radiance *= self.visibility[:, None]
-            image[self.rows, self.cols] = radiance
+            radiance = rho * self.cos[:, None] * g.irradiance
+            radiance *= g.visibility[:, None]
+            image[g.rows, g.cols] = radiance
         return image
 
 
