@@ -180,7 +180,7 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
         col.prop(s, "min_cosine")
         col = layout.column(heading="Sampling")
         for name in ("samples", "sampler", "trials", "subset_fraction",
-                     "min_reliable_samples"):
+                     "min_reliable_samples", "refine_to_photos"):
             col.prop(s, name)
         col = layout.column(heading="Selection")
         col.prop(s, "kl_path")

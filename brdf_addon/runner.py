@@ -230,7 +230,10 @@ class Run:
                            "cycles_bounces": 0, "fast_kl": [float(k) for k in r.kl],
                            "fast_winner": int(r.winner), "agree": winner == r.winner}
             r.kl, r.winner = scores, winner
-            r.table = r.candidates[winner].astype(np.float64)
+            if r.refine_inputs is None:
+                r.table = r.candidates[winner].astype(np.float64)
+            elif winner != r.refinement.get("trial"):
+                pipeline.refine_chosen(r)  # the refit of the Cycles path's winner
         done = self._cycles_total - len(self._cycles_queue)
         self.progress = 0.85 + 0.05 * done / self._cycles_total
         self._timings["cycles_selection"] = self._timings.get("cycles_selection", 0.0) + (

@@ -29,7 +29,9 @@ import numpy as np
 from ..brdf.basis import Basis
 from ..progress import Cancelled as Cancelled  # re-exported: what run() raises
 from ..progress import check
-from . import observations, reliable, sampling, selection
+from . import observations, refine, reliable, sampling, selection
+
+REFINEMENTS = ("none", "photo")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -82,6 +84,7 @@ class PipelineSettings:
     kl_bins: int = 64
     seed: int = 0
     sampler: str = "condition"
+    refine: str = "none"
 
     def __post_init__(self):
         for name in ("n_samples", "n_trials", "min_reliable_samples", "kl_bins"):
@@ -92,6 +95,9 @@ class PipelineSettings:
         if self.sampler not in sampling.CRITERIA:
             raise ValueError(f"sampler must be one of {', '.join(sampling.CRITERIA)}, "
                              f"got {self.sampler!r}")
+        if self.refine not in REFINEMENTS:
+            raise ValueError(f"refine must be one of {', '.join(REFINEMENTS)}, "
+                             f"got {self.refine!r}")
 
 
 class CandidateTables(Sequence):
@@ -134,7 +140,11 @@ class RegionResult:
     timings: wall seconds per stage of this region: ``reliable``, ``sampling``
     (optimal cell choice), ``reconstruction`` (the fits), ``selection`` (KL, from
     each trial's coefficients at the photos' cells), ``expansion`` (the chosen
-    trial's full table).
+    trial's full table), ``refinement`` (when on).
+    refinement: with ``refine="photo"``, the chosen trial's relative RMSE against
+    the observed pixels ``before`` and ``after`` the refit (empty when off).
+    refine_inputs: what :func:`refine_chosen` needs to refit another winner (the
+    Cycles path's); None when the refinement is off.
     """
 
     region: int
@@ -151,6 +161,8 @@ class RegionResult:
     reliable_pixels: np.ndarray | None = None
     selection: dict = dataclasses.field(default_factory=lambda: {"path": "fast"})
     timings: dict = dataclasses.field(default_factory=dict)
+    refinement: dict = dataclasses.field(default_factory=dict)
+    refine_inputs: tuple | None = dataclasses.field(default=None, repr=False)
 
     def summary(self) -> dict:
         """JSON-friendly summary (no arrays) for ``report.json``."""
@@ -160,6 +172,7 @@ class RegionResult:
             "winner": int(self.winner),
             "kl": None if self.kl is None else [float(k) for k in self.kl],
             "trials": self.trials, "selection": self.selection, "timings_s": self.timings,
+            "refinement": self.refinement,
         }
 
 
@@ -296,12 +309,37 @@ def run_region(
     result.status = "ok"
     result.kl = chosen.kl
     result.winner = int(chosen.winner)
-    t0 = time.perf_counter()
-    result.table = trials[chosen.winner][0].table  # the only full table expanded
-    result.timings["expansion"] = time.perf_counter() - t0
+    if settings.refine == "none":
+        t0 = time.perf_counter()
+        result.table = trials[chosen.winner][0].table  # the only full table expanded
+        result.timings["expansion"] = time.perf_counter() - t0
     result.candidates = CandidateTables([rec for rec, _ in trials])
     result.trials = [dict(rec.summary(), samples_used=int(len(used))) for rec, used in trials]
+    if settings.refine == "photo":
+        result.refine_inputs = (basis, samples.subset(sel), cand)
+        check(cancelled)
+        if progress:
+            progress(1.0, f"region {region}: refining the chosen table to the photos")
+        refine_chosen(result)
     return result
+
+
+def refine_chosen(result: RegionResult) -> None:
+    """Refit ``result``'s chosen trial (``result.winner``) to the region's observed
+    pixels (``core.method.refine.photo_consistent``) and make it ``result.table``;
+    records ``refinement`` and its time. Nothing to do when the refinement is off
+    (``refine_inputs`` None)."""
+    if result.refine_inputs is None:
+        return
+    basis, observed, trusted = result.refine_inputs
+    t0 = time.perf_counter()
+    start = result.candidates.reconstructions[result.winner]
+    refined = refine.photo_consistent(basis, start, observed, trusted)
+    result.table = refined.table
+    result.refinement = {"trial": int(result.winner),
+                         "before": refine.relative_rmse(start, observed),
+                         "after": refine.relative_rmse(refined, observed)}
+    result.timings["refinement"] = time.perf_counter() - t0
 
 
 def run(
