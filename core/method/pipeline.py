@@ -274,7 +274,8 @@ def run_region(
         # clipped (and removed), the brightest one left sits on the highlight's edge
         rel = dataclasses.replace(rel, use_brightest=False)
     try:
-        cand, report = reliable.reliable_candidates(samples.subset(sel), rel)
+        observed = samples.subset(sel)
+        cand, report = reliable.reliable_candidates(observed, rel)
     except ValueError as error:
         result.reason = f"region {region}: {error}"
         return result
@@ -316,7 +317,7 @@ def run_region(
     result.candidates = CandidateTables([rec for rec, _ in trials])
     result.trials = [dict(rec.summary(), samples_used=int(len(used))) for rec, used in trials]
     if settings.refine == "photo":
-        result.refine_inputs = (basis, samples.subset(sel), cand)
+        result.refine_inputs = (basis, observed, cand)
         check(cancelled)
         if progress:
             progress(1.0, f"region {region}: refining the chosen table to the photos")
