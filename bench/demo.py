@@ -76,7 +76,7 @@ def main(argv=None) -> int:
     parser.add_argument("--height", type=int, default=180)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--preset", default="BALANCED", choices=("FAST", "BALANCED",
-                                                                 "ACCURATE"))
+                                                                 "ACCURATE", "PAPER"))
     parser.add_argument("--out", default="demo_out")
     args = parser.parse_args(argv)
 

@@ -27,8 +27,9 @@ peak memory (the child's max RSS), and the errors against the truth: BRDF log
 RMSE and the rendered-sphere relative RMSE under three evaluation lights
 (``core.brdf.metrics.sphere_error``) of the chosen table and of the baked material.
 
-**Presets**: the Fast / Balanced / Accurate settings of ``brdf_addon.presets.PRESETS``
-run as points of their own, so the README quotes what each measured.
+**Presets**: every entry of ``brdf_addon.presets.PRESETS`` (Fast, Balanced, Accurate,
+and Paper, the paper's 6 samples x 16 trials with the Cycles selection) run as points
+of their own, so the README quotes what each measured.
 
 **Ablation** (the paper's Fig. 3e against Sec. 3.1): no constraints, each
 constraint alone, all constraints; each with the median trial (no KL) and the

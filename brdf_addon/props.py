@@ -266,11 +266,15 @@ class BRDFSettings(PropertyGroup):
     # sampling and trials (paper Sec. 3.2)
     preset: EnumProperty(
         name="Preset", default="BALANCED", update=_apply_preset,
-        description="Samples, trials and selection as measured for a speed/accuracy trade; "
-        "changing one of them makes the preset Custom",
-        items=[("FAST", "Fast", HINTS["FAST"]), ("BALANCED", "Balanced", HINTS["BALANCED"]),
-               ("ACCURATE", "Accurate", HINTS["ACCURATE"]),
-               ("CUSTOM", "Custom", "Your own samples, trials and selection")])
+        description="Samples, trials and selection: a measured speed/accuracy trade (Fast, "
+        "Balanced, Accurate) or the paper's own mode (Paper); changing one of them makes "
+        "the preset Custom",
+        # numbered: a .blend stores the number, and Custom was 3 before Paper came
+        items=[("FAST", "Fast", HINTS["FAST"], 0),
+               ("BALANCED", "Balanced", HINTS["BALANCED"], 1),
+               ("ACCURATE", "Accurate", HINTS["ACCURATE"], 2),
+               ("PAPER", "Paper", HINTS["PAPER"], 4),
+               ("CUSTOM", "Custom", "Your own samples, trials and selection", 3)])
     samples: IntProperty(name="BRDF Samples", default=_BALANCED["samples"], min=1, soft_max=200,
                          update=_preset_value_changed,
                          description="Optimal BRDF samples per trial (paper: 6)")

@@ -1,7 +1,8 @@
-"""The Fast / Balanced / Accurate presets (brdf_addon/presets.py): the panel's
+"""The Fast / Balanced / Accurate / Paper presets (brdf_addon/presets.py): the panel's
 defaults are Balanced, choosing a preset sets its values, editing one of them to
 another value makes the preset Custom, and a job file's own values win over its
-preset by the same rule."""
+preset by the same rule. Paper is the paper's own mode (6 samples, KL of Cycles
+renders)."""
 
 import pathlib
 
@@ -87,6 +88,29 @@ def test_settings_no_preset_names_keep_it(scene):
     assert s.preset == "ACCURATE"
 
 
+def test_paper_preset_is_the_papers_mode(scene):
+    """6 samples per trial (Ono et al. 2017, Sec. 4.1), 16 trials of half the reliable
+    pixels, and the KL of Cycles renders of each candidate (Sec. 3.2), at Accurate's
+    Cycles samples."""
+    assert PRESETS["PAPER"] == dict(samples=6, trials=16, subset_fraction=0.5,
+                                    kl_path="CYCLES",
+                                    kl_samples=PRESETS["ACCURATE"]["kl_samples"])
+    s = scene.brdf
+    s.preset = "PAPER"
+    assert s.preset == "PAPER"  # its own assignments did not make it Custom
+    assert (s.samples, s.trials, s.kl_path) == (6, 16, "CYCLES")
+    assert s.subset_fraction == pytest.approx(0.5)
+    assert s.kl_samples == PRESETS["ACCURATE"]["kl_samples"]
+
+
+def test_paper_preset_with_the_fast_selection_is_custom(scene):
+    """The paper's mode is not silently changed: the numpy selection is another mode."""
+    s = scene.brdf
+    s.preset = "PAPER"
+    s.kl_path = "FAST"
+    assert s.preset == "CUSTOM" and s.samples == 6
+
+
 def test_custom_stays_custom_and_keeps_the_values(scene):
     s = scene.brdf
     s.preset = "CUSTOM"
@@ -118,9 +142,19 @@ def test_job_preset_alone_is_that_preset(scene):
     assert _values(s, PRESETS["ACCURATE"]) == pytest.approx(PRESETS["ACCURATE"])
 
 
+def test_job_paper_preset_is_accepted(scene):
+    job_module.apply(_job(scene, {"preset": "PAPER"}), scene)
+    s = scene.brdf
+    assert s.preset == "PAPER"
+    assert _values(s, PRESETS["PAPER"]) == pytest.approx(PRESETS["PAPER"])
+
+
 def test_job_unknown_preset_is_one_sentence(scene):
-    with pytest.raises(job_module.JobError, match="setting preset = 'QUICK'"):
+    """One sentence that names every allowed value, Paper included."""
+    with pytest.raises(job_module.JobError) as error:
         job_module.apply(_job(scene, {"preset": "QUICK"}), scene)
+    assert str(error.value) == ("setting preset = 'QUICK': must be one of FAST, BALANCED, "
+                                "ACCURATE, PAPER, CUSTOM")
 
 
 def test_job_preset_with_its_own_value_stays_that_preset(scene):
@@ -138,3 +172,29 @@ def test_job_value_without_a_preset_is_judged_against_the_default(scene):
     bpy.data.objects.remove(bpy.data.objects["scan"])
     job_module.apply(_job(scene, {"trials": 5}), scene)
     assert scene.brdf.preset == "CUSTOM" and scene.brdf.trials == 5
+
+
+def test_a_file_saved_before_paper_keeps_its_preset(registered, tmp_path):
+    """Blender stores an enum's number, not its name: a file saved with the three
+    presets of 0.1.0 (Custom the fourth item) opens with the preset it had, not
+    Paper; each preset keeps the number it was saved with."""
+    from brdf_reconstruct.brdf_addon import props
+
+    preset = props.BRDFSettings.__annotations__["preset"]
+    old = [("FAST", "Fast", ""), ("BALANCED", "Balanced", ""), ("ACCURATE", "Accurate", ""),
+           ("CUSTOM", "Custom", "")]  # 0.1.0's items, numbered by position
+    saved = {}
+    try:
+        props.BRDFSettings.preset = bpy.props.EnumProperty(items=old, default="BALANCED")
+        for identifier, _name, _description in old:
+            registered.brdf.preset = identifier
+            saved[identifier] = tmp_path / f"{identifier.lower()}.blend"
+            bpy.ops.wm.save_as_mainfile(filepath=str(saved[identifier]))
+    finally:
+        props.BRDFSettings.preset = preset
+    bpy.context.scene.brdf.preset = "PAPER"  # and Paper, saved now, opens as Paper
+    saved["PAPER"] = tmp_path / "paper.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(saved["PAPER"]))
+    for identifier, path in saved.items():
+        bpy.ops.wm.open_mainfile(filepath=str(path))
+        assert bpy.context.scene.brdf.preset == identifier
