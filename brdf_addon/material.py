@@ -307,7 +307,7 @@ def bake_error(material, table, lights, resolution: int = 64, render_samples: in
     t0 = time.perf_counter()
     lights = np.atleast_2d(np.asarray(lights, dtype=np.float64))
     lights = lights / np.linalg.norm(lights, axis=1, keepdims=True)
-    table = fitting.clean_table(table)
+    table = fitting.clean_table(table, copy=False)  # only read here
     normals, mask = render.sphere_normals(resolution)
     images = render_sphere_cycles(material, lights, resolution, render_samples, irradiance)
     stored = material.get("brdf_fit")

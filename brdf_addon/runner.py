@@ -142,7 +142,9 @@ class Run:
                         raise pipeline.Cancelled("cancelled by the user")
                     if r.status == "ok":
                         self.message = f"region {r.region}: fitting the material"
+                        t_fit = time.perf_counter()
                         self._fits[r.region] = (r.winner, fitting.fit(r.table))
+                        self._timings[f"fit_region_{r.region}"] = time.perf_counter() - t_fit
             self._outcome = ("ok", result)
         except pipeline.Cancelled as error:
             self._outcome = ("cancelled", error)

@@ -48,6 +48,7 @@ The fit of this model to a table is :mod:`.fitting`.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -63,6 +64,7 @@ INV_PI = 1.0 / np.pi
 _VELVET_COS_H_MAX = 1.0 - 1e-5  # Cycles returns 0 above this n.h (and for l.h <= 1e-5)
 _SINGULAR_ALPHA2 = 2e-10  # Cycles' BSDF_ROUGHNESS_SQ_THRESH: smoother lobes are not evaluated
 INV_PI = INV_PI
+_BLOCK = 32768  # rows per block of evaluate and tabulate
 
 
 # ----------------------------------------------------------------------------- params
@@ -148,42 +150,70 @@ class LobeParams:
 
 
 # ------------------------------------------------------------------------- evaluation
+def _norm_rows(a):
+    """``np.linalg.norm(a, axis=1)`` of (N, 3) rows, rounded as it rounds them,
+    ``sqrt((a0^2 + a1^2) + a2^2)`` (tested), without its slow reduction over rows of 3."""
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    return np.sqrt((a0 * a0 + a1 * a1) + a2 * a2)
+
+
+def _dot_rows(a, b):
+    """``np.einsum("ij,ij->i", a, b)`` of (N, 3) rows, rounded as it rounds them,
+    ``(a0 b0 + a2 b2) + a1 b1`` (tested; as ``merl._dot_einsum``)."""
+    return (a[:, 0] * b[:, 0] + a[:, 2] * b[:, 2]) + a[:, 1] * b[:, 1]
+
+
 class Geometry:
     """Cosines of local-frame direction pairs (N,) above the horizon."""
 
     def __init__(self, l, v):
-        self.cos_l = l[:, 2]
-        self.cos_v = v[:, 2]
+        self.cos_l = np.ascontiguousarray(l[:, 2])
+        self.cos_v = np.ascontiguousarray(v[:, 2])
         h = l + v
-        norm = np.linalg.norm(h, axis=1)
+        norm = _norm_rows(h)
         ok = norm > 0.0
         self.cos_h = np.clip(np.divide(h[:, 2], norm, out=np.ones_like(norm), where=ok), 0.0, 1.0)
-        self.cos_d = np.clip(np.divide(np.einsum("ij,ij->i", l, h), norm,
+        self.cos_d = np.clip(np.divide(_dot_rows(l, h), norm,
                                        out=np.zeros_like(norm), where=ok), 0.0, 1.0)
         self.schlick = (1.0 - self.cos_d) ** 5
+
+    # The parts of the lobes that do not depend on their width, computed once per
+    # Geometry (the fit evaluates dozens of widths on the same cells); each is the
+    # very expression the lobe formulas used inline, so no value changes.
+    @functools.cached_property
+    def _ggx_parts(self):
+        c2 = np.minimum(self.cos_h * self.cos_h, 1.0)
+        cl, cv = self.cos_l, self.cos_v
+        return c2, 1.0 - c2, cl * cl, 1.0 - cl * cl, cv * cv, 1.0 - cv * cv
+
+    @functools.cached_property
+    def _beckmann_parts(self):
+        c2 = np.clip(self.cos_h * self.cos_h, 1e-300, 1.0)
+        tan2 = (1.0 - c2) / c2
+        tan2_lv = [np.maximum(1.0 / (cos * cos) - 1.0, 0.0) for cos in (self.cos_l, self.cos_v)]
+        return c2, tan2, -tan2, 2.0 * tan2, tan2_lv, 4.0 * self.cos_l * self.cos_v
 
     def ggx(self, alpha):
         """D G2 / (4 cos_l cos_v) of a GGX lobe of width alpha."""
         a2 = alpha * alpha
-        c2 = np.minimum(self.cos_h * self.cos_h, 1.0)
-        t = (1.0 - c2) + a2 * c2
+        c2, one_minus_c2, cl2, s_l, cv2, s_v = self._ggx_parts
+        t = one_minus_c2 + a2 * c2
         d = a2 * INV_PI / (t * t)
         # 4 cos_l cos_v (1 + Lambda_l + Lambda_v) = 2 (cos_v mu_l + cos_l mu_v) with
         # mu = cos sqrt(1 + a^2 tan^2) = sqrt(cos^2 + a^2 sin^2): no division by a cosine.
         cl, cv = self.cos_l, self.cos_v
-        mu_l = np.sqrt(cl * cl + a2 * (1.0 - cl * cl))
-        mu_v = np.sqrt(cv * cv + a2 * (1.0 - cv * cv))
+        mu_l = np.sqrt(cl2 + a2 * s_l)
+        mu_v = np.sqrt(cv2 + a2 * s_v)
         return d * 0.5 / (cv * mu_l + cl * mu_v)
 
     def ggx_dlog(self, alpha):
         """d ggx(alpha) / d ln(alpha)."""
         a2 = alpha * alpha
-        c2 = np.minimum(self.cos_h * self.cos_h, 1.0)
-        t = (1.0 - c2) + a2 * c2
+        c2, one_minus_c2, cl2, s_l, cv2, s_v = self._ggx_parts
+        t = one_minus_c2 + a2 * c2
         cl, cv = self.cos_l, self.cos_v
-        s_l, s_v = 1.0 - cl * cl, 1.0 - cv * cv
-        mu_l = np.sqrt(cl * cl + a2 * s_l)
-        mu_v = np.sqrt(cv * cv + a2 * s_v)
+        mu_l = np.sqrt(cl2 + a2 * s_l)
+        mu_v = np.sqrt(cv2 + a2 * s_v)
         den = cv * mu_l + cl * mu_v
         shape = a2 * INV_PI / (t * t) * 0.5 / den
         dlog_d = 2.0 - 4.0 * a2 * c2 / t
@@ -200,12 +230,11 @@ class Geometry:
 
     def _beckmann(self, alpha, derivative):
         a2 = alpha * alpha
-        c2 = np.clip(self.cos_h * self.cos_h, 1e-300, 1.0)
-        tan2 = (1.0 - c2) / c2
-        d = np.exp(-tan2 / a2) / (np.pi * a2 * c2 * c2)
+        c2, _tan2, minus_tan2, twice_tan2, tan2_lv, four_cos_lv = self._beckmann_parts
+        d = np.exp(minus_tan2 / a2) / (np.pi * a2 * c2 * c2)
         lam, dlam = [], []
-        for cos in (self.cos_l, self.cos_v):
-            t2 = a2 * np.maximum(1.0 / (cos * cos) - 1.0, 0.0)  # (a tan)^2
+        for tan2_cos in tan2_lv:
+            t2 = a2 * tan2_cos  # (a tan)^2
             zero = t2 < 0.39  # x = 1 / (a tan) > 1.6: Lambda = 0 (Cycles)
             x = 1.0 / np.sqrt(np.where(zero, 1.0, t2))
             num = (0.396 * x - 1.259) * x + 1.0
@@ -215,10 +244,10 @@ class Geometry:
                 dl_dx = ((0.792 * x - 1.259) * den - num * (4.362 * x + 3.535)) / (den * den)
                 dlam.append(np.where(zero, 0.0, -x * dl_dx))
         g2 = 1.0 / (1.0 + lam[0] + lam[1])
-        shape = d * g2 / (4.0 * self.cos_l * self.cos_v)
+        shape = d * g2 / four_cos_lv
         if not derivative:
             return shape
-        return shape * (2.0 * tan2 / a2 - 2.0 - (dlam[0] + dlam[1]) * g2)
+        return shape * (twice_tan2 / a2 - 2.0 - (dlam[0] + dlam[1]) * g2)
 
     def microfacet(self, dist, alpha):
         return self.ggx(alpha) if dist == "ggx" else self.beckmann(alpha)
@@ -267,37 +296,61 @@ def evaluate(params, l: np.ndarray, v: np.ndarray) -> np.ndarray:
     params: :class:`LobeParams` (or its dict, or a :class:`.fitting.LobeFit`).
     l, v: (N, 3) unit light and view directions, local frame (normal +z), any
     float dtype. Returns rho (N, 3) float64 in 1/sr (no cosine), 0 where
-    ``l_z <= 0`` or ``v_z <= 0``.
+    ``l_z <= 0`` or ``v_z <= 0``. Evaluated in blocks of rows (every row is
+    computed on its own, so the blocks change no value): the temporaries stay
+    in the cache, which makes a table's million cells about twice as fast.
     """
     p = _as_params(params)
     l = np.asarray(l, dtype=np.float64).reshape(-1, 3)
     v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
     if l.shape != v.shape:
         raise ValueError(f"l and v must have the same shape, got {l.shape} and {v.shape}")
-    above = (l[:, 2] > 0.0) & (v[:, 2] > 0.0)
     out = np.zeros((len(l), 3))
+    for start in range(0, len(l), _BLOCK):
+        block = slice(start, start + _BLOCK)
+        out[block] = _evaluate_block(p, l[block], v[block]).T
+    return out
+
+
+def _evaluate_block(p: LobeParams, l: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """:func:`evaluate` on one block of rows, channel-major: (3, N), so the sums over
+    the lobes run along contiguous rows (the same terms, added in the same order)."""
+    above = (l[:, 2] > 0.0) & (v[:, 2] > 0.0)
+    out = np.zeros((3, len(l)))
     if not above.any():
         return out
-    g = Geometry(l[above], v[above])
-    rho = np.broadcast_to(p.diffuse * INV_PI, (len(g.cos_l), 3)).copy()
+    every = bool(above.all())
+    g = Geometry(l, v) if every else Geometry(l[above], v[above])
+    rho = np.empty((3, len(g.cos_l)))
+    rho[:] = (p.diffuse * INV_PI)[:, None]
     for dist, color, grazing, alpha in zip(p.distributions, p.colors, p.grazing, p.alphas,
                                            strict=True):
         alpha = min(float(alpha), 1.0)  # Cycles: alpha = saturate(roughness)^2
         if alpha * alpha <= _SINGULAR_ALPHA2:  # Cycles treats it as a mirror: no light eval
             continue
-        rho += g.microfacet(dist, alpha)[:, None] * (color + grazing * g.schlick[:, None])
+        shape = g.microfacet(dist, alpha)
+        rise = grazing * g.schlick
+        for c in range(3):  # rho += shape (A_k + B_k (1 - l.h)^5), per channel
+            rho[c] += shape * (color[c] + rise)
     if np.any(p.sheen != 0.0):
-        rho += g.velvet(float(np.clip(p.sheen_sigma, 0.01, 1.0)))[:, None] * p.sheen
-    out[above] = rho
+        velvet = g.velvet(float(np.clip(p.sheen_sigma, 0.01, 1.0)))
+        for c in range(3):
+            rho[c] += velvet * p.sheen[c]
+    if every:
+        return rho
+    out[:, above] = rho
     return out
 
 
 def tabulate(params) -> np.ndarray:
     """The model on the MERL grid: (3, 90, 90, 180) float64 at the cell centres,
     NaN below the horizon (like :func:`database.make_table`)."""
+    p = _as_params(params)
     wi, wo = merl.cell_directions()
     valid = merl.valid_cells()
     table = np.full((3, merl.N_CELLS), np.nan)
-    table[:, valid] = evaluate(params, wi[valid], wo[valid]).T
+    for start in range(0, merl.N_CELLS, _BLOCK):  # blocks of the grid: no (N, 3) copies
+        block = slice(start, start + _BLOCK)
+        keep = valid[block]
+        table[:, block][:, keep] = _evaluate_block(p, wi[block][keep], wo[block][keep])
     return table.reshape(3, *merl.SHAPE)
-

@@ -110,7 +110,11 @@ class Basis:
     def table_from_rows(self, values: np.ndarray) -> np.ndarray:
         """Per-row RGB values (R, 3) as a full table (3, 90, 90, 180): cells outside the
         basis take the value of the basis cell ``merl.fill_unmeasured`` would copy."""
-        return np.ascontiguousarray(values.T[:, _fill_source(self)]).reshape(3, *merl.SHAPE)
+        source = _fill_source(self)
+        out = np.empty((3, merl.N_CELLS), dtype=np.result_type(values))
+        for c in range(3):  # a gather per channel into the C-ordered table (no copies)
+            np.take(values[:, c], source, out=out[c])
+        return out.reshape(3, *merl.SHAPE)
 
     def project(self, table: np.ndarray, n_components: int | None = None) -> np.ndarray:
         """Best approximation of ``table`` (3, 90, 90, 180) in the basis span (least

@@ -66,19 +66,34 @@ def read(path: str | os.PathLike) -> np.ndarray:
     return table
 
 
-def _stored_values(table: np.ndarray) -> np.ndarray:
+def _stored_values(table: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """1/sr -> stored doubles, choosing for each value a stored double that reads back
     to exactly that value when one exists (the scales are not powers of two, so the
-    plain quotient is sometimes one ulp off). NaN -> -1."""
-    scale = SCALE[:, None, None, None]
-    q = table / scale
-    for direction in (np.inf, -np.inf):
-        miss = (q * scale != table) & np.isfinite(table)
-        if not miss.any():
-            break
-        alt = np.nextafter(q, direction)
-        q = np.where(miss & (alt * scale == table), alt, q)
-    return np.where(np.isnan(table), -1.0, q)
+    plain quotient is sometimes one ulp off). NaN -> -1.
+
+    table: (3, 90, 90, 180); out: (3, N_CELLS) array to write into (a new float64
+    one if None), returned. Each value is converted on its own, so the work is done
+    in blocks of cells whose temporaries stay in the cache."""
+    flat = table.reshape(3, -1)
+    if out is None:
+        out = np.empty(flat.shape)
+    for c in range(3):
+        scale = SCALE[c]
+        for start in range(0, flat.shape[1], _WRITE_BLOCK):
+            block = slice(start, start + _WRITE_BLOCK)
+            t = flat[c, block]
+            q = t / scale
+            for direction in (np.inf, -np.inf):
+                miss = (q * scale != t) & np.isfinite(t)
+                if not miss.any():
+                    break
+                alt = np.nextafter(q, direction)
+                q = np.where(miss & (alt * scale == t), alt, q)
+            out[c, block] = np.where(np.isnan(t), -1.0, q)
+    return out
+
+
+_WRITE_BLOCK = 1 << 16  # cells per block of _stored_values
 
 
 def write(path: str | os.PathLike, table: np.ndarray) -> None:
@@ -97,7 +112,9 @@ def write(path: str | os.PathLike, table: np.ndarray) -> None:
         raise ValueError("table holds Inf; a MERL file can only mark cells unmeasured (NaN)")
     if (table < 0).any():
         raise ValueError("table holds negative BRDF values")
-    data = np.asarray(SHAPE, dtype="<i4").tobytes() + _stored_values(table).astype("<f8").tobytes()
+    data = bytearray(FILE_SIZE)  # the file's bytes, filled in place (no copies)
+    data[:12] = np.asarray(SHAPE, dtype="<i4").tobytes()
+    _stored_values(table, np.frombuffer(data, dtype="<f8", offset=12).reshape(3, N_CELLS))
     files.write_bytes(path, data)  # a temporary name, renamed when complete
 
 
@@ -208,12 +225,30 @@ def cell_directions():
     """Light and view directions at every cell centre, C order of (90, 90, 180).
 
     Returns wi, wo: (1458000, 3) float64 read-only unit vectors, local frame.
+    Equal, bit for bit, to ``dirs_from_half_diff(*angles_from_cells(grid))`` over
+    the grid of every cell (tested), about 10x faster: each angle's sine and cosine
+    are taken once per bin (90, 90 and 180 values) and the same products are
+    formed by broadcasting instead of once per cell.
     """
-    grid = np.indices(SHAPE).reshape(3, -1).T
-    wi, wo = dirs_from_half_diff(*angles_from_cells(grid))
-    wi.flags.writeable = False
-    wo.flags.writeable = False
-    return wi, wo
+    bins = np.repeat(np.arange(max(SHAPE))[:, None], 3, axis=1)  # (180, 3): bin i on each axis
+    theta_h, theta_d, phi_d = angles_from_cells(bins)
+    theta_h, theta_d, phi_d = theta_h[:SHAPE[0]], theta_d[:SHAPE[1]], phi_d[:SHAPE[2]]
+    ct = np.cos(theta_h)[:, None, None]
+    st = np.sin(theta_h)[:, None, None]
+    st_d = np.sin(theta_d)[None, :, None]
+    d2 = np.cos(theta_d)[None, :, None]
+    d0 = st_d * np.cos(phi_d)[None, None, :]
+    d1 = st_d * np.sin(phi_d)[None, None, :]
+    out = []
+    for u0, u1, u2 in ((d0, d1, d2), (d0 * -1.0, d1 * -1.0, d2 * 1.0)):  # wi, then wo
+        w = np.empty((*SHAPE, 3))  # the rotation of dirs_from_half_diff, Ry(theta_h) u
+        w[..., 0] = ct * u0 + st * u2
+        w[..., 1] = u1
+        w[..., 2] = -st * u0 + ct * u2
+        w = w.reshape(-1, 3)
+        w.flags.writeable = False
+        out.append(w)
+    return out[0], out[1]
 
 
 @functools.lru_cache(maxsize=1)
@@ -235,12 +270,50 @@ def fill_unmeasured(table: np.ndarray) -> np.ndarray:
     while the queried directions are not.
     """
     out = np.array(table, dtype=np.float64)
-    for axis in (2, 1):
-        if not np.isnan(out).any():
-            break
-        out = _fill_along(out, axis, reverse=False)
-        out = _fill_along(out, axis, reverse=True)
-    return np.nan_to_num(out, nan=0.0)
+    # Neither pass mixes values across the last axis (phi_d): filled in slabs of it,
+    # whose temporaries stay in the cache. A slab without NaN is left as it is, which
+    # is what either pass would leave of it.
+    width = _FILL_SLAB if out.ndim == 4 else out.shape[-1]
+    for start in range(0, out.shape[-1], width):
+        slab = out[..., start:start + width]
+        for axis in (2, 1):
+            if not np.isnan(slab).any():
+                break
+            slab = _fill_along(slab, axis, reverse=False)
+            slab = _fill_along(slab, axis, reverse=True)
+        out[..., start:start + width] = slab
+    return np.nan_to_num(out, nan=0.0, copy=False)
+
+
+_FILL_SLAB = 6  # phi_d bins per slab of fill_unmeasured
+
+
+def fill_unmeasured_at(table: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``fill_unmeasured(table).reshape(3, -1)[:, index]`` without filling (or
+    copying) the whole table: (3, N) float64 at the flat cells ``index`` (N,) int.
+
+    Equal to it bit for bit (tested): the fill only copies values, so a measured
+    cell is itself, and an unmeasured one takes, in its own theta_d column, the
+    last measured cell before it, else the first after it (the two passes of the
+    fill along theta_d). Only a cell whose whole column is unmeasured needs the
+    theta_h pass, and then the whole table is filled.
+    """
+    table = np.asarray(table, dtype=np.float64)
+    index = np.asarray(index, dtype=np.int64).reshape(-1)
+    values = table.reshape(3, -1)[:, index]
+    channel, hole = np.nonzero(np.isnan(values))
+    if len(hole):
+        ith, itd, ipd = np.unravel_index(index[hole], SHAPE)
+        column = table[channel, ith, :, ipd]  # (H, 90): each hole's theta_d column
+        measured = ~np.isnan(column)
+        ramp = np.arange(SHAPE[1])
+        before = np.where(measured & (ramp <= itd[:, None]), ramp, -1).max(axis=1)
+        after = np.where(measured & (ramp >= itd[:, None]), ramp, SHAPE[1]).min(axis=1)
+        source = np.where(before >= 0, before, after)
+        if (source >= SHAPE[1]).any():  # a column with no measured cell: the theta_h pass
+            return fill_unmeasured(table).reshape(3, -1)[:, index]
+        values[channel, hole] = column[np.arange(len(hole)), source]
+    return np.nan_to_num(values, nan=0.0)
 
 
 def _fill_along(a: np.ndarray, axis: int, reverse: bool) -> np.ndarray:

@@ -15,12 +15,22 @@ def brdf_log_rmse(estimate: np.ndarray, reference: np.ndarray) -> float:
     ``c = cos(theta_l) cos(theta_v)`` at the cell centre. Dimensionless.
     """
     wi, wo = merl.cell_directions()
-    c = np.clip(wi[:, 2] * wo[:, 2], 0.0, 1.0)
     est = np.asarray(estimate, dtype=np.float64).reshape(3, -1)
     ref = np.asarray(reference, dtype=np.float64).reshape(3, -1)
-    keep = merl.valid_cells() & np.all(np.isfinite(ref), axis=0)
-    d = np.log1p(est[:, keep] * c[keep]) - np.log1p(ref[:, keep] * c[keep])
-    return float(np.sqrt(np.mean(d**2)))
+    cells = np.flatnonzero(merl.valid_cells() & np.all(np.isfinite(ref), axis=0))
+    # the differences in blocks of cells (their temporaries stay in the cache), into
+    # one (3, n) array laid out as ``est[:, keep]`` lays it out (cell-major), so the
+    # mean adds them in the same order as the whole at once did
+    d = np.empty((3, len(cells)), order="F")
+    for start in range(0, len(cells), _BLOCK):
+        block = slice(start, start + _BLOCK)
+        idx = cells[block]
+        c = np.clip(wi[idx, 2] * wo[idx, 2], 0.0, 1.0)
+        np.subtract(np.log1p(est[:, idx] * c), np.log1p(ref[:, idx] * c), out=d[:, block])
+    return float(np.sqrt(np.mean(np.square(d, out=d))))
+
+
+_BLOCK = 1 << 15  # cells per block of brdf_log_rmse
 
 
 def relative_rmse(estimate: np.ndarray, reference: np.ndarray) -> float:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from brdf_reconstruct.core.bake import fitting, lobes
-from brdf_reconstruct.core.brdf import database, merl
+from brdf_reconstruct.core.brdf import database, merl, metrics, render
 
 _params = lobes.LobeParams.build
 
@@ -124,6 +124,65 @@ def test_float32_and_channel_last_layouts(plastic_table):
         fit = fitting.fit(table, errors=False)
         np.testing.assert_allclose(fit.params.alphas, ref.params.alphas, rtol=1e-3)
         np.testing.assert_allclose(fit.params.diffuse, ref.params.diffuse, rtol=1e-3, atol=1e-6)
+
+
+def _fit_errors_whole(params, table, resolution=64):
+    """fit_errors as it was written before it looked the spheres' cells up once and
+    filled only those: two whole tables filled, eight render_sphere calls."""
+    t = fitting.clean_table(table)
+    model = lobes.tabulate(params)
+    log_rmse = metrics.brdf_log_rmse(model, t)
+    t, model = merl.fill_unmeasured(t), merl.fill_unmeasured(model)
+    per_light = [metrics.relative_rmse(render.render_sphere(model, light, resolution),
+                                       render.render_sphere(t, light, resolution))
+                 for light in fitting.ERROR_LIGHTS]
+    return {"log_rmse": float(log_rmse), "sphere_rel_rmse": float(per_light[0]),
+            "sphere_rel_rmse_lights": [float(e) for e in per_light]}
+
+
+def test_fit_errors_equal_whole_table_spheres_bit_for_bit(plastic_table):
+    damaged = plastic_table.copy()
+    rng = np.random.default_rng(5)
+    damaged[rng.random(damaged.shape) < 0.05] = np.nan
+    damaged[0, 3, 10, 5], damaged[1, 4, 2, 2] = np.inf, -1.0
+    for table, params in ((plastic_table, FULL), (damaged, FULL),
+                          (np.moveaxis(plastic_table, 0, -1).astype(np.float32),
+                           _params(diffuse=(0.3, 0.1, 0.05),
+                                   lobes=(("ggx", (0.04, 0.04, 0.04), 0.5, 0.006),)))):
+        assert fitting.fit_errors(params, table) == _fit_errors_whole(params, table)
+
+
+def test_nnls_solves_shared_systems_once_with_the_same_result():
+    """Problems whose labels agree on an active set share its system: solving it once
+    for all of them gives each the solution it gets alone."""
+    rng = np.random.default_rng(4)
+    columns = rng.uniform(size=(500, 3, 12))  # per channel, 12 candidate columns
+    grams = np.einsum("nci,ncj->cij", columns, columns)
+    rhs = np.einsum("nci,nc->ci", columns, rng.uniform(size=(500, 3)))
+    # problems: a constant column 0, two columns from 1..5 and one from 6..11
+    pairs = np.array([(i, j) for i in range(1, 6) for j in range(i + 1, 6)])
+    cols = np.concatenate([np.zeros((len(pairs) * 6, 1), dtype=int),
+                           np.repeat(pairs, 6, axis=0),
+                           np.tile(np.arange(6, 12), len(pairs))[:, None]], axis=1)
+    gram = grams[:, cols[:, :, None], cols[:, None, :]].transpose(1, 0, 2, 3).reshape(-1, 4, 4)
+    b = rhs[:, cols].transpose(1, 0, 2).reshape(-1, 4)
+    labels = (cols[:, None, :] * 3 + np.arange(3)[None, :, None]).reshape(-1, 4)
+    alone = fitting._nnls_from_gram(gram, b)
+    shared = fitting._nnls_from_gram(gram, b, labels)
+    for x, y in zip(alone, shared, strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_clean_table_copies_unless_told_it_may_not(plastic_table):
+    copy = fitting.clean_table(plastic_table)
+    assert not np.may_share_memory(copy, plastic_table)
+    assert fitting.clean_table(plastic_table, copy=False) is plastic_table  # already clean
+    damaged = plastic_table.copy()
+    damaged[0, 1, 2, 3] = -1.0
+    cleaned = fitting.clean_table(damaged, copy=False)
+    assert not np.may_share_memory(cleaned, damaged) and damaged[0, 1, 2, 3] == -1.0
+    assert np.isnan(cleaned[0, 1, 2, 3])
+    np.testing.assert_array_equal(cleaned, fitting.clean_table(damaged))
 
 
 def test_deterministic(plastic_table):

@@ -27,6 +27,15 @@ def test_mapping_round_trip(default_basis):
     np.testing.assert_allclose(B.from_mapped(B.to_mapped(rho, rows), rows), rho, rtol=1e-9)
 
 
+def test_table_from_rows_is_the_fill_sources_gather(default_basis):
+    B = default_basis
+    values = np.random.default_rng(1).normal(size=(len(B.cells), 3))
+    table = B.table_from_rows(values)
+    expected = np.ascontiguousarray(values.T[:, B.source_rows(np.arange(merl.N_CELLS))])
+    np.testing.assert_array_equal(table, expected.reshape(3, *merl.SHAPE))
+    assert table.flags.c_contiguous and table.dtype == np.float64
+
+
 def test_default_basis_shape_and_budget(default_basis, tmp_path):
     B = default_basis
     assert B.Q.dtype == np.float32 and B.Q.shape == (len(B.cells), basis.N_COMPONENTS)

@@ -177,6 +177,17 @@ def test_valid_cells_about_three_quarters():
     assert 1_000_000 < merl.valid_cells().sum() < 1_200_000
 
 
+def test_cell_directions_are_the_grid_through_dirs_from_half_diff_bit_for_bit():
+    """cell_directions broadcasts per-bin sines and cosines: the same numbers as
+    dirs_from_half_diff on every cell of the grid."""
+    grid = np.indices(merl.SHAPE).reshape(3, -1).T
+    wi_ref, wo_ref = merl.dirs_from_half_diff(*merl.angles_from_cells(grid))
+    wi, wo = merl.cell_directions()
+    np.testing.assert_array_equal(wi, wi_ref)
+    np.testing.assert_array_equal(wo, wo_ref)
+    assert wi.flags.c_contiguous and not wi.flags.writeable and not wo.flags.writeable
+
+
 # ----------------------------------------------------------------------------- lookup
 def _random_rotation(rng):
     q, r = np.linalg.qr(rng.normal(size=(3, 3)))
@@ -242,6 +253,46 @@ def test_fill_unmeasured_keeps_measured_cells():
     filled = merl.fill_unmeasured(np.where(holes, np.nan, table))
     assert np.all(np.isfinite(filled))
     np.testing.assert_array_equal(filled[~holes], table[~holes])
+
+
+def _fill_unmeasured_whole(table):
+    """fill_unmeasured as it was written before it worked in slabs of phi_d."""
+    out = np.array(table, dtype=np.float64)
+    for axis in (2, 1):
+        if not np.isnan(out).any():
+            break
+        out = merl._fill_along(out, axis, reverse=False)
+        out = merl._fill_along(out, axis, reverse=True)
+    return np.nan_to_num(out, nan=0.0)
+
+
+def _holed_tables(rng):
+    """Tables with unmeasured cells of every kind: below the horizon, scattered,
+    whole theta_d columns and theta_h lines, Inf, and none at all."""
+    below = rng.uniform(size=(3, 90, 90, 180))
+    below.reshape(3, -1)[:, ~merl.valid_cells()] = np.nan
+    scattered = np.where(rng.random(below.shape) < 0.3, np.nan, below)
+    sparse = np.where(rng.random(below.shape) < 0.97, np.nan, below)
+    sparse[1, 5, :, 7] = np.nan  # a whole column: needs the theta_h pass
+    sparse[0, :, :, 3] = np.inf
+    return [below, scattered, sparse, rng.uniform(size=(3, 90, 90, 180)),
+            np.full((3, 90, 90, 180), np.nan)]
+
+
+def test_fill_unmeasured_in_slabs_equals_the_whole_table_at_once():
+    rng = np.random.default_rng(9)
+    for table in _holed_tables(rng):
+        np.testing.assert_array_equal(merl.fill_unmeasured(table),
+                                      _fill_unmeasured_whole(table))
+
+
+def test_fill_unmeasured_at_equals_fill_unmeasured_there():
+    rng = np.random.default_rng(10)
+    for table in _holed_tables(rng):
+        index = rng.integers(0, merl.N_CELLS, 20_000)
+        index[:3] = np.ravel_multi_index((5, 3, 7), merl.SHAPE)  # in the empty column
+        np.testing.assert_array_equal(merl.fill_unmeasured_at(table, index),
+                                      merl.fill_unmeasured(table).reshape(3, -1)[:, index])
 
 
 # ------------------------------------------------------------ fused per-sample binning
