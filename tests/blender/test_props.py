@@ -193,6 +193,13 @@ def test_job_sampler_reaches_the_pipeline(scene):
     assert props.settings_dict(scene.brdf)["sampler"] == "RISK"
 
 
+def test_job_refine_to_photos_reaches_the_pipeline(scene):
+    assert props.pipeline_settings(scene.brdf).refine == "none"  # the default
+    job_module.apply(_job(scene, {"refine_to_photos": True}), scene)
+    assert props.pipeline_settings(scene.brdf).refine == "photo"
+    assert props.settings_dict(scene.brdf)["refine_to_photos"] is True
+
+
 def test_job_unknown_sampler_is_one_sentence(scene):
     with pytest.raises(job_module.JobError) as error:
         job_module.apply(_job(scene, {"sampler": "paper"}), scene)

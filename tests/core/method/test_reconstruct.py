@@ -267,3 +267,47 @@ def test_rho_at_is_the_table_at_those_cells_inside_and_outside_the_basis(default
                                rtol=1e-12, atol=1e-15)
     np.testing.assert_array_equal(rec.expand(), table)
     assert np.all(np.isfinite(table)) and table.min() >= 0.0
+
+
+# ---------------------------------------------------------------------- robust fit
+def _outlier_laden(B, rng, fraction, factor):
+    """3000 samples of a table the basis spans, at random basis cells with rho above
+    1e-3, and the same with ``fraction`` of them off by ``factor`` (an
+    interreflection, a texture edge, a normal far off)."""
+    _, rho = _in_span_material(B, rng)
+    rows = rng.choice(np.flatnonzero(np.all(rho > 1e-3, axis=1)), 3000, replace=False)
+    cells = merl.cells_from_linear(B.cells[rows])
+    bad = rng.random(len(rows)) < fraction
+    spoiled = rho[rows].copy()
+    spoiled[bad] *= factor
+    return cells, rho[rows], spoiled, B.table_from_rows(rho)
+
+
+@pytest.mark.parametrize("factor", [4.0, 0.25])
+def test_an_outlier_laden_sample_set_recovers_the_clean_table(default_basis, factor):
+    """10 % of the samples 4x too bright or too dark: least squares is pulled off
+    (sphere error above 0.05), the Huber fit recovers the clean table (below 0.01,
+    and the outliers are the samples it weighs down)."""
+    B = default_basis
+    cells, clean, spoiled, truth = _outlier_laden(B, np.random.default_rng(4), 0.1, factor)
+    assert metrics.sphere_error(reconstruct.reconstruct(B, cells, clean).table, truth) < 0.01
+    plain = reconstruct.reconstruct(B, cells, spoiled)
+    robust = reconstruct.robust_reconstruct(B, cells, spoiled)
+    assert metrics.sphere_error(plain.table, truth) > 0.05
+    assert metrics.sphere_error(robust.table, truth) < 0.01
+    rows = B.rows_of(merl.linear_index(cells))
+    assert np.max(np.abs(robust.rho_at(B.cells[rows]) / clean - 1.0)) < 0.05
+
+
+def test_robust_fit_of_clean_samples_is_the_plain_fit_and_deterministic(default_basis):
+    """Without outliers the Huber fit gives the least-squares table (every weight
+    stays near 1); the same input gives the same table."""
+    B = default_basis
+    cells, clean, _, truth = _outlier_laden(B, np.random.default_rng(5), 0.0, 1.0)
+    plain = reconstruct.reconstruct(B, cells, clean)
+    robust = reconstruct.robust_reconstruct(B, cells, clean)
+    assert metrics.sphere_error(robust.table, plain.table) < 1e-3
+    again = reconstruct.robust_reconstruct(B, cells, clean)
+    assert np.array_equal(robust.coefficients, again.coefficients)
+    with pytest.raises(ValueError, match="iterations must be at least 1"):
+        reconstruct.robust_reconstruct(B, cells, clean, iterations=0)

@@ -133,3 +133,34 @@ def test_a_new_winner_is_refitted(default_basis, heldout_tables):
     again = refine.photo_consistent(default_basis, region.candidates.reconstructions[other],
                                     samples, trusted)
     assert np.array_equal(region.table, again.table)
+
+
+def _jittered(inputs, degrees, seed=0):
+    """The photos' G-buffer normals, each turned by an independent Gaussian tangent
+    offset of ``degrees`` standard deviation per axis (scan noise)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for p in inputs:
+        d = rng.normal(0.0, np.radians(degrees), p.normal.shape)
+        d -= np.sum(d * p.normal, axis=-1, keepdims=True) * p.normal
+        m = p.normal + d
+        out.append(dataclasses.replace(p, normal=m / np.linalg.norm(m, axis=-1, keepdims=True)))
+    return out
+
+
+@pytest.mark.parametrize("degrees", [1.0, 2.0])
+@pytest.mark.parametrize("name", ["heldout_gold_medium", "heldout_glossy_plastic",
+                                  "heldout_silver_mirror"])
+def test_a_highlight_seen_with_jittered_normals_keeps_its_peak(default_basis, heldout_tables,
+                                                               name, degrees):
+    """Photos on the true surface, normals jittered by 1 or 2 degrees: the default
+    pipeline (no refit) keeps the specular peak (theta_h bin 0, theta_d below 60
+    degrees, the largest value per channel) within a factor 2 of the true one, for
+    a GGX gold (alpha 0.12), a glossy plastic and a mirror 10^4 above its diffuse
+    level. (The refit does not: with 1 degree its mirror peak is 10^3 too high;
+    module docstring.)"""
+    truth = heldout_tables[name]
+    inputs = _jittered(_inputs(truth), degrees)
+    table = pipeline.run(default_basis, inputs, SETTINGS).regions[0].table
+    ratio = table[:, 0, :60].max(axis=(1, 2)) / truth[:, 0, :60].max(axis=(1, 2))
+    assert np.all((ratio > 0.5) & (ratio < 2.0)), ratio
