@@ -16,20 +16,21 @@ settings (``props.pipeline_settings`` of the scene on preset BALANCED: 20 sample
 trials, fast KL) and the default basis that never saw the material
 (``common.default_basis_without``). Its ``region.kl`` (the fast KL of each trial) is
 set against the Cycles KL of the same 16 candidate tables (``cycles_select.
-score_candidate``, called as ``runner.Run._cycles_step`` calls it: the table baked to
-lobes, rendered by Cycles from each photo's camera under its light, KL against the
-photo over the region's pixels, mean over photos) at the Accurate preset's
+score_candidate``, called as ``runner.Run._cycles_step`` calls it: the table as a
+tabulated-BRDF material for the photo's light, ``brdf_addon.table_shader``, rendered
+by Cycles from each photo's camera under that light, KL against the photo over the
+region's pixels, mean over photos; before 2026-12-03 the path rendered each table's
+baked lobes instead) at the Accurate preset's
 ``kl_samples`` (``--cycles-samples``: any list of counts).
 
 Per material: Spearman and Kendall correlation of the two rankings (``scipy.stats``),
 whether the winners agree, the fast winner's rank under Cycles (1 = Cycles' best),
 and the sphere error (``metrics.sphere_error`` against the true table) of the fast
-winner, the Cycles winner and the best trial (the oracle). A diagnostic splits the
-two paths' difference in two: the fast KL of the *baked* candidates (the lobes
-Cycles renders, ``lobes.tabulate(fitting.fit(table).params)``, shaded by the fast
-path) ranks like Cycles when the bake is what differs, like the fast KL when the
-renderer is. With two or more Cycles sample counts, the Cycles rankings are also
-compared with each other (the Cycles path's own repeatability).
+winner, the Cycles winner and the best trial (the oracle). A diagnostic: the fast
+KL of the *baked* candidates (``lobes.tabulate(fitting.fit(table).params)``, shaded
+by the fast path; what the Cycles path rendered before 2026-12-03), against both.
+With two or more Cycles sample counts, the Cycles rankings are also compared with
+each other (the Cycles path's own repeatability).
 
 Writes ``bench/results/kl_agreement.json`` and ``kl_agreement.png`` (fast KL against
 Cycles KL per material; ``--quick``: ``kl_agreement_quick.*``). On the loaded 2-core

@@ -41,7 +41,7 @@ def test_both_paths_pick_the_true_material(tiny):
               _lambert(0.9)]
     fast = selection.select_by_kl(tables, pipeline.region_views(inputs, 0))
     blocks = {k: len(getattr(bpy.data, k)) for k in ("materials", "node_groups", "objects",
-                                                     "scenes", "meshes", "lights")}
+                                                     "scenes", "meshes", "lights", "images")}
     kl, winner = cycles_select.select_by_cycles(scene, inputs, 0, tables, render_samples=16)
     assert fast.winner == winner == 1
     # the same ranking, and a clear margin on both paths
