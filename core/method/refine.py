@@ -50,7 +50,7 @@ import numpy as np
 from ..brdf import merl
 from ..brdf.basis import EPS, Basis, _mapping_f64
 from .observations import Samples
-from .reconstruct import Reconstruction
+from .reconstruct import HUBER_K, Reconstruction
 
 _MARGIN = 5.0  # as Basis.from_mapped: extrapolation up to e^5 beyond the training range
 
@@ -110,7 +110,7 @@ def photo_consistent(
             return np.ones(0)
         scale = 1.4826 * float(np.median(np.abs(r - np.median(r))))
         scale = max(scale, 1e-12 * float(np.sqrt(np.mean(r**2))), tiny)
-        return np.minimum(1.0, 1.345 * scale / np.maximum(np.abs(r), tiny))
+        return np.minimum(1.0, HUBER_K * scale / np.maximum(np.abs(r), tiny))
 
     def profiled(c, g, obs, xt):
         """-2 log posterior of c with both noise levels at their maximum (the
