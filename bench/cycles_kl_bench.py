@@ -49,6 +49,7 @@ def main(argv=None) -> dict:
     brdf_reconstruct.register()
     scene = built["scene"]
     scene.brdf.target = built["scan"]
+    scene.brdf.output_dir = str(tmp / "out")  # absolute: the scene is never saved
     (p,), _ = photo_list.add_photos(scene, [str(built["photo"])])
     p.irradiance = (BS.lit_irradiance(),) * 3
     inputs = gathering.gather(scene)
