@@ -29,7 +29,7 @@ medians over materials (of the per-material median over seeds), the seed spread
 (median over materials of (max - min) / median over seeds) and the share of
 materials within 2x the exact-normal floor (the same mode's on the exact scan;
 Balanced's for the modes not run there). Writes ``bench/results/photo.json`` and
-``photo.png`` (``--quick``: ``photo_quick.*``). About 35 minutes for 3 seeds on the
+``photo.png`` (``--quick``: ``photo_quick.*``). About 35 to 50 minutes for 3 seeds on the
 2-core machine.
 """
 

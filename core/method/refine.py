@@ -125,19 +125,26 @@ def photo_consistent(
     def fit_channel(c, g, obs, xt, use_log):
         for _ in range(iterations):
             pred, slope = predict(c, g)
-            r_l, r_x = pred - obs, Qt @ c + mean_t - xt
-            w_x = huber(r_x) if use_log else np.zeros(len(r_x))
+            r_l = pred - obs
             s2_l = max(float(np.mean(r_l**2)), 1e-12 * float(np.mean(obs**2)), tiny)
-            s2_x = max(float(np.sum(w_x * r_x**2) / max(np.sum(w_x), tiny))
-                       if len(r_x) else 1.0, 1e-8)
             J = slope[:, None] * Q
+            H, grad = J.T @ J / s2_l, J.T @ r_l / s2_l
+            w_x = s2_x = None
+            if use_log:  # the mapped term; not computed in the first stage
+                r_x = Qt @ c + mean_t - xt
+                w_x = huber(r_x)
+                s2_x = max(float(np.sum(w_x * r_x**2) / max(np.sum(w_x), tiny))
+                           if len(r_x) else 1.0, 1e-8)
+                H = H + (Qt.T * w_x) @ Qt / s2_x
+                grad = grad + Qt.T @ (w_x * r_x) / s2_x
+            H, grad = H + np.eye(k) / tau2, grad + c / tau2
 
             def objective(cn, pn, s2_l=s2_l, s2_x=s2_x, w_x=w_x, obs=obs, xt=xt):
-                return (np.sum((pn - obs) ** 2) / s2_l
-                        + np.sum(w_x * (Qt @ cn + mean_t - xt) ** 2) / s2_x + cn @ cn / tau2)
+                value = np.sum((pn - obs) ** 2) / s2_l
+                if w_x is not None:
+                    value = value + np.sum(w_x * (Qt @ cn + mean_t - xt) ** 2) / s2_x
+                return value + cn @ cn / tau2
 
-            H = J.T @ J / s2_l + (Qt.T * w_x) @ Qt / s2_x + np.eye(k) / tau2
-            grad = J.T @ r_l / s2_l + Qt.T @ (w_x * r_x) / s2_x + c / tau2
             f0, damping, moved = objective(c, pred), 1e-4, False
             for _ in range(12):
                 step = np.linalg.solve(H + damping * np.diag(np.diag(H)), -grad)
