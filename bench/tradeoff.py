@@ -20,10 +20,12 @@ a rough dielectric, analytic and measured (:data:`MATERIALS`), two seeds each):
 trials; samples per trial, from the paper's 6 up to every reliable sample; photo
 resolution; basis size (PCA
 components, the basis truncated; 80 is built); KL path (fast numpy, or Cycles
-renders of each baked candidate at 4/16/64 samples). Each point runs in its own
+renders of each candidate table at 4/16/64 samples). Each point runs in its own
 child process and records wall seconds per stage (G-buffers: the Cycles render
 of the scan per photo, measured when the capture was rendered; observations,
-reliable region, sampling, reconstruction, selection, bake = the lobe fit),
+reliable region, sampling, reconstruction (the trials' coefficients), selection,
+expansion (the chosen trial's full table; with the Cycles path also its winner's,
+as the extension does), bake = the lobe fit),
 peak memory (the child's max RSS), and the errors against the truth: BRDF log
 RMSE and the rendered-sphere relative RMSE under three evaluation lights
 (``core.brdf.metrics.sphere_error``) of the chosen table and of the baked material.
@@ -116,7 +118,7 @@ CONSTRAINTS = {
     "all": dict(use_curvature=True, use_monotonicity=True, use_brightest=True),
 }
 STAGES = ("gbuffers", "observations", "reliable", "sampling", "reconstruction", "selection",
-          "bake")
+          "expansion", "bake")
 
 
 def _basis(components: int, material: str):
@@ -134,8 +136,9 @@ def _basis(components: int, material: str):
 
 
 def _cycles_select(point: Point, arrays, inputs, candidates):
-    """(winner, seconds): KL of Cycles renders of each baked candidate (the
-    extension's accurate path, ``brdf_addon.cycles_select``)."""
+    """(winner, seconds): KL of Cycles renders of each candidate table (the
+    extension's accurate path, ``brdf_addon.cycles_select``; each table expanded
+    from its trial's coefficients, timed with the renders)."""
     from types import SimpleNamespace
 
     import capture_arrays
@@ -179,9 +182,13 @@ def run_point(point: Point) -> dict:
     timings = {k: float(result.timings.get(k, 0.0)) for k in STAGES}
     timings["gbuffers"] = float(arrays["scan_gbuffer_s"]) * point.photos
     winner = region.winner
+    table = region.table  # the fast winner's, expanded (and timed) by the pipeline
     if point.kl == "cycles":
         winner, timings["selection"] = _cycles_select(point, arrays, inputs, region.candidates)
-    table = np.asarray(region.candidates[winner], dtype=np.float64)
+        t0 = time.perf_counter()  # the extension expands the Cycles winner again (runner)
+        table = region.candidates[winner]
+        timings["expansion"] += time.perf_counter() - t0
+    table = np.asarray(table, dtype=np.float64)
     t0 = time.perf_counter()
     fit = fitting.fit(table, errors=False)
     baked = lobes.tabulate(fit.params)
@@ -296,7 +303,9 @@ def summarise(rows: list, configs: list) -> list:
             "baked_sphere_error": med("baked_sphere_error"),
             "median_trial_sphere_error": med("median_trial_sphere_error"),
             "total_s": med("total_s"), "peak_rss_mb": med("peak_rss_mb"),
-            "timings_s": {s: float(np.median([r["timings_s"][s] for r in mine]))
+            # rows from before the trials were kept as coefficients (2026-12-02, 43dc45d)
+            # lack "expansion": their reconstruction expanded every trial's table
+            "timings_s": {s: float(np.median([r["timings_s"].get(s, 0.0) for r in mine]))
                           for s in STAGES},
             "per_material": {m: float(np.median([r["sphere_error"] for r in mine
                                                  if r["point"]["material"] == m]))

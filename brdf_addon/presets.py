@@ -38,15 +38,14 @@ PRESETS = {
 }
 
 # One line per preset for the panel and tooltips: what it costs and buys, as measured
-# (bench/results/tradeoff.json, "presets", 2026-12-02, the default measured basis and
-# the pipeline's default condition-number sampler: bunny capture, 3 photos of
-# 240 x 180, wall seconds per region on a 2-core machine, median rendered-sphere error
-# over 2 analytic and 2 measured held-out materials; docs/results.md). Paper has not
-# been run as a preset yet (bench/tradeoff.py --part presets runs every entry of
-# PRESETS), so its line says what it does and quotes no time or error.
+# (bench/results/tradeoff.json, "presets", 2026-12-03, `bench/tradeoff.py --part presets`
+# run on every entry of PRESETS, the default measured basis and the pipeline's default
+# condition-number sampler: bunny capture, 3 photos of 240 x 180, wall seconds per
+# region on a 2-core machine shared with other jobs, median rendered-sphere error over
+# 2 analytic and 2 measured held-out materials x 2 seeds; docs/results.md).
 HINTS = {
-    "FAST": "20 samples x 4 trials, numpy selection: about 6 s, error 0.30",
-    "BALANCED": "20 samples x 16 trials, numpy selection: about 15 s, error 0.28",
-    "ACCURATE": "20 samples x 16 trials, Cycles selection: about 70 s, error 0.28",
-    "PAPER": "The paper's method: 6 samples x 16 trials, Cycles selection (not yet measured)",
+    "FAST": "20 samples x 4 trials, numpy selection: about 2 s, error 0.30",
+    "BALANCED": "20 samples x 16 trials, numpy selection: about 3 s, error 0.28",
+    "ACCURATE": "20 samples x 16 trials, Cycles selection: about 18 s, error 0.28",
+    "PAPER": "The paper's method: 6 samples x 16 trials, Cycles selection: about 17 s, error 0.27",
 }
