@@ -13,7 +13,12 @@ and from the held-out comparison (docs/results.md, "The speed/accuracy trade"):
 - the Cycles selection path picked better trials than the numpy one on both
   sweep materials (gold 0.19 against 0.30), at about 10x the time; 4, 16 and
   64 Cycles samples picked the same trials for the gold and 4 did as well or
-  better for the plastic, so Accurate renders with 4.
+  better for the plastic, so Accurate renders with 4. That sweep rendered each
+  candidate's baked lobes; since the Cycles path renders the candidate table
+  (2026-12-03), the presets' run finds Accurate choosing Balanced's trial in 7
+  of 8 runs (the same median, 0.277, at about 5x the time) and Paper worse than
+  Balanced on 3 of its 4 materials: Accurate is kept as it is until the sweep
+  is rerun with the table-rendering path.
 
 Paper is not a point of that trade but the paper's own mode, kept so that its
 result stays reproducible and for the ablation (issue 15): 6 samples per trial
