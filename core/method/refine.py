@@ -61,18 +61,29 @@ def photo_consistent(
     samples: Samples,
     trusted: Samples,
     iterations: int = 20,
+    normal_sigma: float = 0.0,
+    normal_draws: int = 8,
 ) -> Reconstruction:
     """Refit ``start``'s coefficients to the photos (module docstring).
 
     basis: the basis ``start`` was fitted in. samples: the region's observed
-    samples (radiance, irradiance, n, l, cells used; N >= 1). trusted: the
+    samples (radiance, irradiance, n, l, v, cells used; N >= 1). trusted: the
     reliable samples (rho and cells used) for the mapped term. iterations:
-    Gauss-Newton steps per channel, >= 1. Returns a new Reconstruction with all k
-    coefficients per channel; its residuals are at the trusted samples' cells.
-    Deterministic: no random choice.
+    Gauss-Newton steps per channel, >= 1. normal_sigma: the scan normals' error,
+    radians (standard deviation per tangent axis, >= 0); when positive, the
+    radiance term predicts each pixel as the mean over ``normal_draws`` normals
+    drawn about the scan's (a fixed seed), so a lobe blurred by wrong normals is
+    not fitted as a wider lobe (an experiment, off by default:
+    ``bench/refit_bench.py``, docs/results.md). Returns a new Reconstruction with
+    all k coefficients per channel; its residuals are at the trusted samples'
+    cells. Deterministic: no random choice beyond the seeded draws.
     """
     if iterations < 1:
         raise ValueError(f"iterations must be at least 1, got {iterations}")
+    if not (np.isfinite(normal_sigma) and normal_sigma >= 0.0):
+        raise ValueError(f"normal_sigma must be a finite angle >= 0 radians, got {normal_sigma}")
+    if normal_draws < 1:
+        raise ValueError(f"normal_draws must be at least 1, got {normal_draws}")
     if len(samples) == 0:
         raise ValueError("no observed samples to refine against")
     k = basis.n_components
@@ -81,12 +92,21 @@ def photo_consistent(
     weight, m_eps = _mapping_f64(basis)
     lo, hi = basis.x_range
 
-    rows = basis.source_rows(merl.linear_index(samples.cells))
-    Q = basis.Q[rows].astype(np.float64)  # (N, k)
-    mean = basis.mean[rows].astype(np.float64)
-    weight, m_eps = weight[rows], m_eps[rows]
-    cos_l = np.maximum(np.einsum("ij,ij->i", samples.n, samples.l), 0.0)
-    shading = np.asarray(samples.irradiance, dtype=np.float64) * cos_l[:, None]  # (N, 3)
+    # the radiance term's lookups, one set per normal draw: (Q (N, k), mean, weight
+    # and m_eps (N,), shading (N, 3)); one draw, the scan's normals, by default
+    draws = [_lookups(basis, weight, m_eps, samples.cells, samples.n, samples)]
+    if normal_sigma > 0.0:
+        rng = np.random.default_rng(0)
+        n = np.asarray(samples.n, dtype=np.float64)
+        draws = []
+        for _ in range(normal_draws):
+            t = rng.normal(0.0, normal_sigma, n.shape)
+            t -= np.einsum("ij,ij->i", t, n)[:, None] * n  # tangent offsets
+            m = n + t
+            m /= np.linalg.norm(m, axis=1, keepdims=True)
+            draws.append(_lookups(basis, weight, m_eps,
+                                  merl.cells_about_normals(m, samples.l, samples.v), m,
+                                  samples))
     radiance = np.asarray(samples.radiance, dtype=np.float64)
 
     trows = basis.rows_of(merl.linear_index(trusted.cells))
@@ -99,10 +119,17 @@ def photo_consistent(
     tau2 = 1.0 / basis.info["n_columns"]
     tiny = np.finfo(np.float64).tiny
 
-    def predict(c, g):
-        """Radiance (N,) and its derivative along the mapped value (N,)."""
-        e = m_eps * np.exp(np.clip(Q @ c + mean, lo - _MARGIN, hi + _MARGIN))
-        return np.maximum(e - EPS, 0.0) / weight * g, e / weight * g
+    def predict(c, ch, jacobian=True):
+        """Radiance (N,) of channel ``ch`` and its Jacobian (N, k) in c (None if not
+        asked for): the mean over the normal draws."""
+        value, jac = 0.0, 0.0
+        for Q, mean, weight, m_eps, shading in draws:
+            g = shading[:, ch]
+            e = m_eps * np.exp(np.clip(Q @ c + mean, lo - _MARGIN, hi + _MARGIN))
+            value = value + np.maximum(e - EPS, 0.0) / weight * g
+            if jacobian:
+                jac = jac + (e / weight * g)[:, None] * Q
+        return value / len(draws), (jac / len(draws) if jacobian else None)
 
     def huber(r):
         """IRLS weights (n,) of residuals r (n,) under a Huber loss (1 in the core)."""
@@ -112,22 +139,21 @@ def photo_consistent(
         scale = max(scale, 1e-12 * float(np.sqrt(np.mean(r**2))), tiny)
         return np.minimum(1.0, HUBER_K * scale / np.maximum(np.abs(r), tiny))
 
-    def profiled(c, g, obs, xt):
+    def profiled(c, ch, obs, xt):
         """-2 log posterior of c with both noise levels at their maximum (the
         terms' mean squared residuals), up to a constant: comparable between fits."""
-        r_l, r_x = predict(c, g)[0] - obs, Qt @ c + mean_t - xt
+        r_l, r_x = predict(c, ch, False)[0] - obs, Qt @ c + mean_t - xt
         w_x = huber(r_x)
         value = len(r_l) * np.log(max(float(np.mean(r_l**2)), tiny)) + c @ c / tau2
         if len(r_x):
             value += np.sum(w_x) * np.log(max(float(np.sum(w_x * r_x**2) / np.sum(w_x)), 1e-8))
         return float(value)
 
-    def fit_channel(c, g, obs, xt, use_log):
+    def fit_channel(c, ch, obs, xt, use_log):
         for _ in range(iterations):
-            pred, slope = predict(c, g)
+            pred, J = predict(c, ch)
             r_l = pred - obs
             s2_l = max(float(np.mean(r_l**2)), 1e-12 * float(np.mean(obs**2)), tiny)
-            J = slope[:, None] * Q
             H, grad = J.T @ J / s2_l, J.T @ r_l / s2_l
             w_x = s2_x = None
             if use_log:  # the mapped term; not computed in the first stage
@@ -149,7 +175,7 @@ def photo_consistent(
             for _ in range(12):
                 step = np.linalg.solve(H + damping * np.diag(np.diag(H)), -grad)
                 trial = c + step
-                value = objective(trial, predict(trial, g)[0])
+                value = objective(trial, predict(trial, ch, False)[0])
                 if np.isfinite(value) and value < f0:
                     c, moved = trial, True
                     break
@@ -159,14 +185,14 @@ def photo_consistent(
         return c
 
     for ch in range(3):
-        g, obs, xt = shading[:, ch], radiance[:, ch], x_t[:, ch]
+        obs, xt = radiance[:, ch], x_t[:, ch]
         c = coefs[:, ch].copy()
         # two paths, both terms at the end: from the trial, and through the
         # radiance term alone; the more probable end point is kept
-        paths = [fit_channel(c, g, obs, xt, use_log=True),
-                 fit_channel(fit_channel(c, g, obs, xt, use_log=False), g, obs, xt,
+        paths = [fit_channel(c, ch, obs, xt, use_log=True),
+                 fit_channel(fit_channel(c, ch, obs, xt, use_log=False), ch, obs, xt,
                              use_log=True)]
-        coefs[:, ch] = min(paths, key=lambda cp: profiled(cp, g, obs, xt))
+        coefs[:, ch] = min(paths, key=lambda cp: profiled(cp, ch, obs, xt))
 
     fitted = Qt @ coefs + mean_t[:, None]
     return Reconstruction(
@@ -177,6 +203,17 @@ def photo_consistent(
         eta=np.asarray(start.eta, dtype=np.float64), n_components=np.full(3, k),
         noise_sigma=np.full(3, np.nan), log_evidence=np.full(3, np.nan),
         n_samples=int(len(samples)), n_outside=int(np.sum(~inside)))
+
+
+def _lookups(basis: Basis, weight, m_eps, cells, n, samples: Samples):
+    """The radiance term's per-sample basis rows for cells (N, 3) about normals n
+    (N, 3): Q (N, k) and mean (N,) float64, the mapping's weight and m_eps (N,),
+    and the shading E (n . l)+ (N, 3)."""
+    rows = basis.source_rows(merl.linear_index(cells))
+    cos_l = np.maximum(np.einsum("ij,ij->i", n, samples.l), 0.0)
+    return (basis.Q[rows].astype(np.float64), basis.mean[rows].astype(np.float64),
+            weight[rows], m_eps[rows],
+            np.asarray(samples.irradiance, dtype=np.float64) * cos_l[:, None])
 
 
 def relative_rmse(rec: Reconstruction, samples: Samples) -> float:

@@ -164,3 +164,68 @@ def test_a_highlight_seen_with_jittered_normals_keeps_its_peak(default_basis, he
     table = pipeline.run(default_basis, inputs, SETTINGS).regions[0].table
     ratio = table[:, 0, :60].max(axis=(1, 2)) / truth[:, 0, :60].max(axis=(1, 2))
     assert np.all((ratio > 0.5) & (ratio < 2.0)), ratio
+
+
+def _blurred_inputs(table, degrees, draws=16, seed=7):
+    """Photos whose every pixel is the mean over ``draws`` true normals turned by a
+    Gaussian tangent offset of ``degrees`` per axis (a lobe blurred by normal error),
+    with the exact normals as the scan's."""
+    z = synthetic.height_field(RES)
+    g = synthetic.gbuffer_from_heights(z)
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in (0, 1, 2):
+        total = 0.0
+        for _ in range(draws):
+            d = rng.normal(0.0, np.radians(degrees), g.normal.shape)
+            d -= np.sum(d * g.normal, axis=-1, keepdims=True) * g.normal
+            m = g.normal + d
+            m /= np.linalg.norm(m, axis=-1, keepdims=True)
+            total = total + synthetic.photo(table, dataclasses.replace(g, normal=m),
+                                            synthetic.LIGHTS[i])
+        out.append(pipeline.PhotoInput(
+            photo=total / draws, normal=g.normal, position=g.position,
+            visibility=np.ones(z.shape), region=np.zeros(z.shape, dtype=np.int64),
+            camera_center=g.camera_center, light=synthetic.LIGHTS[i], irradiance=1.0,
+            name=f"photo{i}"))
+    return out
+
+
+@pytest.mark.parametrize("name", ["heldout_gold_medium", "heldout_glossy_plastic"])
+def test_the_normal_error_model_undoes_a_known_blur(default_basis, heldout_tables, name):
+    """Photos blurred by a known 2-degree normal error (independent draws): the refit
+    told that error (``normal_sigma``) comes at least 1.4x closer to the true table
+    than the refit that takes the scan's normals as exact, which fits the blurred
+    lobe (measured 0.245 / 0.140 for the gold, 0.578 / 0.250 for the plastic)."""
+    truth = heldout_tables[name]
+    samples, trusted = _samples(_blurred_inputs(truth, 2.0))
+    start = reconstruct(default_basis, trusted.cells[:1], trusted.rho[:1])
+    start = dataclasses.replace(start, coefficients=np.zeros((default_basis.n_components, 3)))
+    plain = refine.photo_consistent(default_basis, start, samples, trusted)
+    told = refine.photo_consistent(default_basis, start, samples, trusted,
+                                   normal_sigma=np.radians(2.0))
+    assert np.all(np.isfinite(told.table))
+    e_plain = metrics.sphere_error(plain.table, truth)
+    e_told = metrics.sphere_error(told.table, truth)
+    assert e_told * 1.4 < e_plain, (e_told, e_plain)
+
+
+def test_the_normal_error_model_is_validated_and_deterministic(default_basis, heldout_tables):
+    """A negative or NaN normal_sigma and fewer than one draw are refused in one
+    sentence; zero is the plain refit to the bit; the draws are seeded."""
+    inputs = _inputs(heldout_tables["heldout_gold_medium"])
+    samples, trusted = _samples(inputs)
+    start = reconstruct(default_basis, trusted.cells[:20], trusted.rho[:20])
+    for bad in (-0.01, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="normal_sigma"):
+            refine.photo_consistent(default_basis, start, samples, trusted, normal_sigma=bad)
+    with pytest.raises(ValueError, match="normal_draws"):
+        refine.photo_consistent(default_basis, start, samples, trusted, normal_sigma=0.01,
+                                normal_draws=0)
+    plain = refine.photo_consistent(default_basis, start, samples, trusted, iterations=3)
+    zero = refine.photo_consistent(default_basis, start, samples, trusted, iterations=3,
+                                   normal_sigma=0.0)
+    assert np.array_equal(plain.coefficients, zero.coefficients)
+    a, b = (refine.photo_consistent(default_basis, start, samples, trusted, iterations=3,
+                                    normal_sigma=0.02).coefficients for _ in range(2))
+    assert np.array_equal(a, b)
