@@ -94,8 +94,10 @@ def photo_consistent(
 
     # the radiance term's lookups, one set per normal draw: (Q (N, k), mean, weight
     # and m_eps (N,), shading (N, 3)); one draw, the scan's normals, by default
-    draws = [_lookups(basis, weight, m_eps, samples.cells, samples.n, samples)]
-    if normal_sigma > 0.0:
+    # (each draw holds its own Q: N x k float64, 8 draws 8x the memory of one)
+    if normal_sigma == 0.0:
+        draws = [_lookups(basis, weight, m_eps, samples.cells, samples.n, samples)]
+    else:
         rng = np.random.default_rng(0)
         n = np.asarray(samples.n, dtype=np.float64)
         draws = []
