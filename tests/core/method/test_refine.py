@@ -135,17 +135,19 @@ def test_a_new_winner_is_refitted(default_basis, heldout_tables):
     assert np.array_equal(region.table, again.table)
 
 
+def _turned(normal, degrees, rng):
+    """Unit normals (..., 3), each turned by an independent Gaussian tangent offset
+    of ``degrees`` standard deviation per axis."""
+    d = rng.normal(0.0, np.radians(degrees), normal.shape)
+    d -= np.sum(d * normal, axis=-1, keepdims=True) * normal
+    m = normal + d
+    return m / np.linalg.norm(m, axis=-1, keepdims=True)
+
+
 def _jittered(inputs, degrees, seed=0):
-    """The photos' G-buffer normals, each turned by an independent Gaussian tangent
-    offset of ``degrees`` standard deviation per axis (scan noise)."""
+    """The photos' G-buffer normals turned as :func:`_turned` does (scan noise)."""
     rng = np.random.default_rng(seed)
-    out = []
-    for p in inputs:
-        d = rng.normal(0.0, np.radians(degrees), p.normal.shape)
-        d -= np.sum(d * p.normal, axis=-1, keepdims=True) * p.normal
-        m = p.normal + d
-        out.append(dataclasses.replace(p, normal=m / np.linalg.norm(m, axis=-1, keepdims=True)))
-    return out
+    return [dataclasses.replace(p, normal=_turned(p.normal, degrees, rng)) for p in inputs]
 
 
 @pytest.mark.parametrize("degrees", [1.0, 2.0])
@@ -167,9 +169,9 @@ def test_a_highlight_seen_with_jittered_normals_keeps_its_peak(default_basis, he
 
 
 def _blurred_inputs(table, degrees, draws=16, seed=7):
-    """Photos whose every pixel is the mean over ``draws`` true normals turned by a
-    Gaussian tangent offset of ``degrees`` per axis (a lobe blurred by normal error),
-    with the exact normals as the scan's."""
+    """Photos whose every pixel is the mean over ``draws`` true normals turned
+    (:func:`_turned`; a lobe blurred by normal error), with the exact normals as the
+    scan's."""
     z = synthetic.height_field(RES)
     g = synthetic.gbuffer_from_heights(z)
     rng = np.random.default_rng(seed)
@@ -177,12 +179,8 @@ def _blurred_inputs(table, degrees, draws=16, seed=7):
     for i in (0, 1, 2):
         total = 0.0
         for _ in range(draws):
-            d = rng.normal(0.0, np.radians(degrees), g.normal.shape)
-            d -= np.sum(d * g.normal, axis=-1, keepdims=True) * g.normal
-            m = g.normal + d
-            m /= np.linalg.norm(m, axis=-1, keepdims=True)
-            total = total + synthetic.photo(table, dataclasses.replace(g, normal=m),
-                                            synthetic.LIGHTS[i])
+            turned = dataclasses.replace(g, normal=_turned(g.normal, degrees, rng))
+            total = total + synthetic.photo(table, turned, synthetic.LIGHTS[i])
         out.append(pipeline.PhotoInput(
             photo=total / draws, normal=g.normal, position=g.position,
             visibility=np.ones(z.shape), region=np.zeros(z.shape, dtype=np.int64),
