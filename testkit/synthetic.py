@@ -85,6 +85,66 @@ def normal_angle_error(a: GBuffer, b: GBuffer) -> np.ndarray:
     return np.arccos(np.clip(np.sum(a.normal * b.normal, axis=-1), -1.0, 1.0))
 
 
+def height_field_uv(g: GBuffer) -> np.ndarray:
+    """(H, W, 2) the height field's UV map at each pixel of a G-buffer: (x, y) over
+    [-1, 1]^2 mapped to [0, 1]^2 (u right, v up, as Blender's)."""
+    return np.stack([(g.position[..., 0] + 1.0) / 2.0, (g.position[..., 1] + 1.0) / 2.0],
+                    axis=-1)
+
+
+def patch_texture(shape=(24, 24), patch: int = 4, seed: int = 0) -> np.ndarray:
+    """(height * width, 3) a relative albedo texture (mean 1 per channel): square
+    patches of ``patch`` texels of random colour, times a 1-texel checker of 1 and
+    0.6; at least 10:1 between its darkest and brightest texel (issue 16)."""
+    height, width = shape
+    rng = np.random.default_rng(seed)
+    colours = rng.uniform(0.15, 1.6, size=(-(-height // patch), -(-width // patch), 3))
+    tex = np.repeat(np.repeat(colours, patch, axis=0), patch, axis=1)[:height, :width]
+    row, col = np.indices(shape)
+    tex = tex * np.where((row + col) % 2 == 0, 1.0, 0.6)[..., None]
+    tex = tex.reshape(-1, 3)
+    return tex / tex.mean(axis=0)
+
+
+def colour_tables(spec: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(colour part, rest), each (3, 90, 90, 180): an analytic material's table split
+    into the part its texture scales (its Lambert or Oren-Nayar lobes, under its coat
+    when it has one: the models are linear in that albedo) and the part it does not
+    (its specular lobes and coat). The truth of the textured scenes: a texel of
+    relative albedo a has the table ``rest + a * colour``."""
+    import copy
+
+    from brdf_reconstruct.core.brdf import database
+
+    full = database.make_table(spec)
+    plain = copy.deepcopy(spec)
+    plain["lobes"] = [lobe for lobe in spec["lobes"] if lobe["type"] not in ("lambert",
+                                                                                 "oren_nayar")]
+    rest = (database.make_table(plain) if plain["lobes"] or "coat" in plain
+            else np.zeros_like(full))
+    return full - rest, rest
+
+
+def textured_photo(colour: np.ndarray, rest: np.ndarray, texture: np.ndarray, shape,
+                   truth: GBuffer, light: np.ndarray, irradiance=1.0, noise: float = 0.0,
+                   rng: np.random.Generator | int | None = 0) -> np.ndarray:
+    """(H, W, 3) linear photo of the true height field with the texture (relative
+    albedo per texel, (height * width, 3), on :func:`height_field_uv`) scaling the
+    colour part of the table (:func:`colour_tables`); otherwise as :func:`photo`."""
+    from brdf_reconstruct.core.method import albedo
+
+    light = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
+    texel = albedo.texel_index(height_field_uv(truth)[truth.mask], shape)
+    view = render.view_directions(truth.camera_center, truth.position[truth.mask])
+    n = truth.normal[truth.mask]
+    image = np.zeros(truth.mask.shape + (3,))
+    image[truth.mask] = (render.shade(rest, n, light, view, irradiance)
+                         + texture[texel] * render.shade(colour, n, light, view, irradiance))
+    if noise:
+        image *= 1.0 + np.random.default_rng(rng).normal(0.0, noise, image.shape)
+    return np.clip(image, 0.0, None)
+
+
 LIGHTS = np.array([[0.5, 0.3, 0.81], [-0.6, 0.2, 0.77], [0.1, -0.7, 0.71], [0.0, 0.0, 1.0]])
 
 

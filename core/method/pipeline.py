@@ -45,6 +45,8 @@ class PhotoInput:
     scalar or (3,) on a surface facing the light. mask: optional (H, W) bool of
     pixels the user allows. saturated: optional (H, W) bool of pixels at the
     camera's white level (removed up front and counted). name: for reports.
+    uv: optional (H, W, 2) the scan's UV map at each pixel (u right, v up; NaN
+    where there is none), for textured regions (``core.method.textured``).
     """
 
     photo: np.ndarray
@@ -58,6 +60,7 @@ class PhotoInput:
     mask: np.ndarray | None = None
     name: str = ""
     saturated: np.ndarray | None = None
+    uv: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)

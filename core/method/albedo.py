@@ -1,0 +1,378 @@
+"""Per-texel albedo under a region's shared BRDF shape (issue 16; the paper's future work).
+
+A textured region is modelled as one shared BRDF whose diffuse part is scaled,
+texel by texel, on the scan's UV map:
+
+    rho_i = a_t(i) * D_i + S_i          (per RGB channel, 1/sr)
+
+- ``rho_i``: an observation's BRDF value, ``L / (E n.l)`` (``core.method.observations``);
+- ``t(i)``: the texel the observation's surface point maps to (:func:`texel_index`);
+- ``D_i``: the shared shape's diffuse part per unit albedo at the observation's
+  directions (``1/pi`` for a Lambert diffuse; the whole table, with ``S = 0``,
+  where the specular scales with the colour too);
+- ``S_i``: the shared shape's part that does not scale (the specular lobes);
+- ``a_t``: the albedo of texel t, (3,) per texel.
+
+:func:`estimate` solves for every ``a_t`` at once (each texel is its own
+weighted least-squares problem in one unknown per channel, so the solution is
+closed-form and vectorised with ``bincount``):
+
+    a_t = (sum_i u_i w_i D_i (rho_i - S_i) + k p_t / s_p^2) / (sum_i u_i w_i D_i^2 + 1 / s_p^2)
+
+- ``w_i = 1 / sigma_i^2`` with ``sigma_i^2 = (noise rho_i)^2 + (specular_uncertainty S_i)^2``,
+  scaled by the noise level the residuals show: relative photo noise, and a
+  specular part that a wrong normal moves (a blunted scan puts highlights where
+  its normals do not), so highlight pixels say little about the albedo;
+- ``u_i``: Huber weights (IRLS; 1.345 robust standard deviations), so a few
+  wrong observations (an interreflection, a misplaced highlight) do not pull a texel;
+- ``p_t``: the prior, the scan's own texture (linear colour, baked from the
+  ambient photos), scaled per channel by ``k`` (fitted on the measured texels) and
+  trusted to ``s_p = prior_sigma * k p_t`` (relative). Where no lit photo sees a
+  texel the prior alone gives it; where there is neither, the nearest texel that
+  has a value fills it (in the UV image).
+
+Each texel is marked in ``AlbedoMap.coverage``: :data:`MEASURED` (its data
+alone give it to ``max_relative_error``), :data:`INFERRED` (from the scan's
+texture) or :data:`FILLED`.
+
+**Model only what the region needs.** Whether the albedo varies at all is a
+one-way analysis of variance over the measured texels: the between-texel
+spread of the data-only estimates against the within-texel noise of the
+observations (an F test per channel). A region is given one constant albedo
+unless some channel both varies significantly (``p < p_level``) and varies by
+more than the photos' own relative noise; ``AlbedoMap.reason`` says which and why.
+
+Frames and units: texels are indices into a ``(height, width)`` image, row 0 at
+the top (as image files store it), ``u`` to the right and ``v`` up (Blender's
+UV convention). Albedo is in the units of ``D``'s multiplier (dimensionless
+for a Lambert ``D = 1/pi``: the diffuse reflectance).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from scipy import ndimage, stats
+
+from .reconstruct import HUBER_K
+
+FILLED, INFERRED, MEASURED = 0, 1, 2  # AlbedoMap.coverage codes
+COVERAGE_NAMES = {FILLED: "filled", INFERRED: "inferred from the scan's texture",
+                  MEASURED: "measured"}
+_TINY = 1e-30
+
+
+@dataclasses.dataclass(frozen=True)
+class AlbedoSettings:
+    """noise: the photos' relative noise (1 sigma of rho), a starting scale only: the
+    residuals set the level that weights and the homogeneity test use.
+    specular_uncertainty: relative 1-sigma error of the shared specular S at an
+    observation (a blunted scan's normals move the highlight). prior_sigma: relative
+    1-sigma trust in the scan's texture as the albedo (after its per-channel scale).
+    max_relative_error: a texel is MEASURED when its data alone give its albedo to
+    this relative standard error. p_level: significance of the albedo's variation
+    (F test) below which the region is textured. iterations: IRLS rounds."""
+
+    noise: float = 0.01
+    specular_uncertainty: float = 0.5
+    prior_sigma: float = 0.25
+    max_relative_error: float = 0.5
+    p_level: float = 1e-3
+    iterations: int = 6
+
+    def __post_init__(self):
+        for name in ("noise", "specular_uncertainty", "prior_sigma", "max_relative_error"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise ValueError(f"albedo setting {name} must be a positive number, got {value!r}")
+        if not (np.isfinite(self.p_level) and 0.0 < self.p_level < 1.0):
+            raise ValueError(f"albedo setting p_level must lie in (0, 1), got {self.p_level!r}")
+        if int(self.iterations) != self.iterations or self.iterations < 1:
+            raise ValueError(
+                f"albedo setting iterations must be a whole number >= 1, got {self.iterations!r}"
+            )
+
+
+@dataclasses.dataclass(frozen=True, eq=False)  # arrays: no element-wise ==
+class AlbedoMap:
+    """Result of :func:`estimate` for one region.
+
+    albedo: (height * width, 3) float64, every texel finite and >= 0 (constant
+    where ``constant``). coverage: (height * width,) uint8, MEASURED / INFERRED /
+    FILLED. observations: (height * width,) int64, observations per texel.
+    reference: (3,) the region's colour: the mean albedo over the measured texels,
+    or its one value when ``constant`` (the precision-weighted mean). constant:
+    the region got one albedo. reason: one sentence saying why. stats: per
+    channel ``F``, ``p``, ``spread`` (the albedo's relative spread beyond its
+    estimation noise), ``noise`` (the photos' relative noise as the residuals show
+    it); ``prior_scale`` (3,) or None;
+    counts per coverage code.
+    """
+
+    shape: tuple
+    albedo: np.ndarray
+    coverage: np.ndarray
+    observations: np.ndarray
+    reference: np.ndarray
+    constant: bool
+    reason: str
+    stats: dict
+
+    def image(self) -> np.ndarray:
+        """(height, width, 3) float32 albedo image, row 0 at the top."""
+        return self.albedo.reshape(*self.shape, 3).astype(np.float32)
+
+    def coverage_image(self) -> np.ndarray:
+        """(height, width) uint8 image: 255 measured, 128 inferred, 0 filled."""
+        levels = np.array([0, 128, 255], dtype=np.uint8)
+        return levels[self.coverage].reshape(self.shape)
+
+    def normalised(self, rho, texel, diffuse) -> np.ndarray:
+        """(N, 3) the observations brought to the region's reference albedo,
+        ``rho + (reference - a_t) D`` (what the shared shape is fitted to);
+        observations without a texel (``texel < 0``) are returned as they are."""
+        rho = np.asarray(rho, dtype=np.float64)
+        texel = np.asarray(texel, dtype=np.int64)
+        out = np.array(rho)
+        has = texel >= 0
+        out[has] += (self.reference - self.albedo[texel[has]]) * np.asarray(diffuse)[has]
+        return out
+
+
+def texel_index(uv, shape) -> np.ndarray:
+    """(N,) int64 flat texel index (row * width + column) of UV coordinates.
+
+    uv: (N, 2), u to the right, v up (Blender's convention); values outside
+    [0, 1) wrap, as an image texture repeats. shape: (height, width) of the image;
+    row 0 is the image's top. Non-finite UVs give -1 (no texel)."""
+    height, width = _shape(shape)
+    uv = np.asarray(uv, dtype=np.float64)
+    if uv.ndim != 2 or uv.shape[1] != 2:
+        raise ValueError(f"uv must have shape (N, 2), got {uv.shape}")
+    finite = np.isfinite(uv).all(axis=1)
+    safe = np.where(finite[:, None], uv, 0.0)
+    frac = safe - np.floor(safe)
+    col = np.minimum((frac[:, 0] * width).astype(np.int64), width - 1)
+    row = np.minimum(((1.0 - frac[:, 1]) * height).astype(np.int64), height - 1)
+    return np.where(finite, row * width + col, -1)
+
+
+def texel_centres(shape) -> np.ndarray:
+    """(height * width, 2) UV of each texel's centre, in :func:`texel_index`'s order."""
+    height, width = _shape(shape)
+    row, col = np.divmod(np.arange(height * width), width)
+    return np.stack([(col + 0.5) / width, 1.0 - (row + 0.5) / height], axis=1)
+
+
+def _shape(shape) -> tuple:
+    try:
+        height, width = (int(s) for s in shape)
+    except (TypeError, ValueError):
+        raise ValueError(f"texture shape must be (height, width), got {shape!r}") from None
+    if height < 1 or width < 1:
+        raise ValueError(f"texture shape must be at least 1 x 1, got {height} x {width}")
+    return height, width
+
+
+def _rows(name: str, a, n: int) -> np.ndarray:
+    a = np.asarray(a, dtype=np.float64)
+    if a.shape != (n, 3):
+        raise ValueError(f"{name} must have shape ({n}, 3), got {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name} holds NaN or Inf")
+    return a
+
+
+def estimate(texel, rho, diffuse, specular, shape, *, prior=None,
+             settings: AlbedoSettings | None = None) -> AlbedoMap:
+    """The per-texel albedo of one region (see the module docstring).
+
+    texel: (N,) int, each observation's flat texel (:func:`texel_index`; -1 for
+    none). rho: (N, 3) observed BRDF values (1/sr). diffuse: (N, 3) the shared
+    diffuse part per unit albedo at each observation (1/sr, >= 0). specular:
+    (N, 3) the shared part that does not scale (1/sr). shape: (height, width) of
+    the albedo image. prior: (height * width, 3) or (height, width, 3) linear
+    colour of the scan's texture (NaN where it has none), or None.
+
+    ValueError (one sentence) for shapes that do not match, NaN or Inf in the
+    observations, negative diffuse, or when no observation constrains any texel.
+    """
+    settings = settings or AlbedoSettings()
+    height, width = _shape(shape)
+    n_texels = height * width
+    texel = np.asarray(texel)
+    if texel.ndim != 1 or not np.issubdtype(texel.dtype, np.integer):
+        raise ValueError(f"texel must be a 1-D integer array, got {texel.dtype} {texel.shape}")
+    n = len(texel)
+    rho = _rows("rho", rho, n)
+    diffuse = _rows("diffuse", diffuse, n)
+    specular = _rows("specular", specular, n)
+    if (diffuse < 0.0).any():
+        raise ValueError("diffuse must not be negative")
+    if (texel >= n_texels).any():
+        raise ValueError(f"texel indices must be below {n_texels} (the {height} x {width} image)")
+    if prior is not None:
+        prior = np.asarray(prior, dtype=np.float64).reshape(-1, 3) if np.ndim(prior) == 3 \
+            else np.asarray(prior, dtype=np.float64)
+        if prior.shape != (n_texels, 3):
+            raise ValueError(f"prior must have shape ({n_texels}, 3) or ({height}, {width}, 3), "
+                             f"got {prior.shape}")
+        if np.isinf(prior).any() or (prior < 0.0).any():
+            raise ValueError("the prior texture holds Inf or negative values")
+
+    keep = texel >= 0
+    texel, rho, diffuse, specular = texel[keep], rho[keep], diffuse[keep], specular[keep]
+    count = np.bincount(texel, minlength=n_texels)
+
+    fits = [_channel(texel, rho[:, c], diffuse[:, c], specular[:, c], n_texels, settings)
+            for c in range(3)]
+    a = np.stack([f[0] for f in fits], axis=1)  # (T, 3) data-only estimates
+    h = np.stack([f[1] for f in fits], axis=1)  # (T, 3) their precisions
+    # measured: the grey level (the channels' mean) known to max_relative_error
+    constrained = (h > _TINY).all(axis=1)
+    grey = a.mean(axis=1)
+    grey_se = np.sqrt(np.sum(1.0 / np.maximum(h, _TINY), axis=1)) / 3.0
+    measured = constrained & (grey_se <= settings.max_relative_error * np.abs(grey))
+    if not measured.any():
+        raise ValueError("no observation constrains this region's albedo "
+                         "(no lit photo sees its texture, or its diffuse part is zero)")
+    weighted = np.sum(h[measured] * a[measured], axis=0) / np.sum(h[measured], axis=0)
+    channel_stats = [_variation(a[measured, c], h[measured, c], weighted[c], fits[c][2],
+                                fits[c][3], settings) for c in range(3)]
+    textured = [s["p"] < settings.p_level and s["spread"] > s["noise"] for s in channel_stats]
+    constant = not any(textured)
+    # the region's colour: its one value (the estimate of least variance), or the
+    # mean over the measured texels (each texel as much surface as another)
+    reference = weighted if constant else a[measured].mean(axis=0)
+
+    albedo = np.where(measured[:, None], a, np.nan)
+    prior_scale = None
+    if prior is not None:
+        prior_scale, albedo = _with_prior(a, h, measured, prior, reference, settings)
+
+    coverage = np.full(n_texels, FILLED, dtype=np.uint8)
+    if prior is not None:
+        coverage[np.isfinite(prior).all(axis=1) & np.isfinite(albedo).all(axis=1)] = INFERRED
+    coverage[measured] = MEASURED
+    if constant:
+        albedo = np.broadcast_to(reference, (n_texels, 3)).copy()
+    else:
+        albedo = _fill(albedo, coverage != FILLED, (height, width), reference)
+    albedo = np.maximum(albedo, 0.0)
+    reason = _reason(constant, channel_stats, settings)
+    counts = {COVERAGE_NAMES[code]: int(np.sum(coverage == code)) for code in COVERAGE_NAMES}
+    return AlbedoMap(
+        shape=(height, width), albedo=albedo, coverage=coverage, observations=count,
+        reference=reference, constant=constant, reason=reason,
+        stats={"channels": channel_stats, "texels": counts,
+               "prior_scale": None if prior_scale is None else prior_scale.tolist()},
+    )
+
+
+_MIN_NOISE_DOF = 30  # fewer residual degrees of freedom: the assumed noise is used
+
+
+def _channel(texel, rho, d, s, n_texels, settings: AlbedoSettings):
+    """One channel's IRLS. Returns the data-only albedo a (T,) (0 where no data), its
+    precision h (T,) (1 / variance at the noise level the residuals show, 0 where no
+    data), the residuals' degrees of freedom and the relative noise of one
+    observation's albedo (the residuals' scale times ``noise``, the median over
+    diffuse-dominated observations where there are any)."""
+    target = rho - s
+    sigma2 = (settings.noise * rho) ** 2 + (settings.specular_uncertainty * s) ** 2
+    sigma2 = np.maximum(sigma2, (settings.noise * 1e-3 * np.max(np.abs(rho), initial=0.0)) ** 2
+                        + _TINY)
+    w = 1.0 / sigma2
+    u = np.ones_like(rho)
+    s2, dof = 1.0, 0
+    a = hu = np.zeros(n_texels)
+    for _ in range(int(settings.iterations)):
+        hu = np.bincount(texel, u * w * d * d, minlength=n_texels)
+        bu = np.bincount(texel, u * w * d * target, minlength=n_texels)
+        ok = hu > _TINY
+        a = np.where(ok, bu / np.where(ok, hu, 1.0), 0.0)
+        r = (target - a[texel] * d) * np.sqrt(w)
+        dof = len(r) - int(ok.sum())
+        # with few repeated observations the residuals cannot tell the noise: assume it
+        s2 = max(float(np.sum(u * r * r) / dof), _TINY) if dof >= _MIN_NOISE_DOF else 1.0
+        z = np.abs(r) / np.sqrt(s2)
+        u = np.minimum(1.0, HUBER_K / np.maximum(z, _TINY))
+    h = hu / s2
+    level = np.sqrt(s2) * np.sqrt(sigma2) / np.maximum(np.abs(target), _TINY)
+    diffuse_like = (s <= np.abs(target)) & (np.abs(target) > _TINY)
+    noise = float(np.median(level[diffuse_like])) if diffuse_like.any() else float(
+        np.median(level)) if len(level) else settings.noise
+    return a, np.where(hu > _TINY, h, 0.0), max(dof, 0), noise
+
+
+def _variation(a, h, reference, dof_within, noise, settings) -> dict:
+    """One channel's test of a constant albedo over its measured texels (a, h: their
+    data-only estimates and precisions): F = the between-texel chi^2 per degree of
+    freedom (1 for a constant albedo), its p-value (F distribution against the
+    residuals' degrees of freedom, or chi^2 when the noise was assumed), and the
+    relative spread beyond the estimates' own noise, against the photos' noise."""
+    m = len(a)
+    between = float(np.sum(h * (a - reference) ** 2))
+    dof = max(m - 1, 1)
+    f_stat = between / dof
+    if m < 2:
+        p = 1.0
+    elif dof_within >= _MIN_NOISE_DOF:
+        p = float(stats.f.sf(f_stat, dof, dof_within))
+    else:
+        p = float(stats.chi2.sf(between, dof))
+    weights = h / np.sum(h)
+    observed = float(np.sum(weights * (a - reference) ** 2))
+    expected = float(np.sum(weights / h))  # the estimates' own variance, weighted alike
+    spread = float(np.sqrt(max(observed - expected, 0.0))) / max(abs(reference), _TINY)
+    return {"F": f_stat, "p": p, "spread": spread, "noise": noise, "texels": m,
+            "noise_from": "residuals" if dof_within >= _MIN_NOISE_DOF else "assumed"}
+
+
+def _with_prior(a, h, measured, prior, reference, settings):
+    """The prior's per-channel scale k (3,) (fitted on measured texels with a prior;
+    NaN where there is none) and the albedo (T, 3): the data and k p_t combined by
+    precision where the prior has a value, the data alone where it has not, NaN
+    where neither."""
+    has = np.isfinite(prior)
+    p = np.where(has, prior, 0.0)
+    data_h = np.where(measured[:, None], h, 0.0)
+    k = np.full(3, np.nan)
+    for c in range(3):
+        both = measured & has[:, c] & (p[:, c] > 0.0)
+        if both.any():
+            hb, pb = h[both, c], p[both, c]
+            k[c] = np.sum(hb * a[both, c] * pb) / np.sum(hb * pb**2)
+    usable = has & np.isfinite(k)
+    kp = np.where(usable, np.nan_to_num(k) * p, 0.0)
+    sp = settings.prior_sigma * (kp + 0.01 * np.abs(reference))
+    prior_h = np.where(usable, 1.0 / np.maximum(sp * sp, _TINY), 0.0)
+    total = data_h + prior_h
+    mix = data_h * a + prior_h * kp
+    out = np.where(total > 0.0, mix / np.where(total > 0.0, total, 1.0), np.nan)
+    return k, out
+
+
+def _fill(albedo, known, shape, reference) -> np.ndarray:
+    """Texels without a value take their nearest known texel's (in the UV image)."""
+    known = known & np.isfinite(albedo).all(axis=1)
+    if known.all():
+        return albedo
+    if not known.any():
+        return np.broadcast_to(reference, albedo.shape).copy()
+    _, index = ndimage.distance_transform_edt(~known.reshape(shape), return_indices=True)
+    nearest = (index[0] * shape[1] + index[1]).reshape(-1)
+    return albedo[nearest]
+
+
+def _reason(constant: bool, channel_stats: list, settings: AlbedoSettings) -> str:
+    worst = max(channel_stats, key=lambda s: s["spread"] - s["noise"])
+    numbers = (f"its albedo varies by {100 * worst['spread']:.1f} % against the photos' "
+               f"noise of {100 * worst['noise']:.1f} % (F test p = {worst['p']:.2g} "
+               f"over {worst['texels']} measured texels)")
+    if not constant:
+        return f"Textured: {numbers}."
+    if worst["p"] >= settings.p_level:
+        return f"One constant colour: the variation is not significant; {numbers}."
+    return f"One constant colour: the variation is below the photos' noise; {numbers}."
