@@ -21,7 +21,9 @@ How it is rendered (nothing of the user's data is modified):
   (``ViewLayer.use_pass_shadow`` exists for EEVEE only).
 - The same material writes the face attribute ``material_index`` (read by an
   Attribute node) to an AOV, so region ids need no change to the user's
-  materials (their ``pass_index`` is not used).
+  materials (their ``pass_index`` is not used). With ``uv=True`` it writes the
+  mesh's render UV map (a UV Map node; or the one named) to a colour AOV too,
+  for textured regions (``core.method.textured``).
 - A pixel filter of the smallest width (0.01 px; Blackman-Harris, since Cycles
   ignores the width of its box filter) puts every sample at the pixel centre:
   normals are not blended across silhouettes and shadows are point-sampled, so
@@ -52,7 +54,7 @@ from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
 from ..core.capture.photo_io import read_multilayer_exr
-from ..core.method.gbuffers import LAYER, REGION_AOV, GBuffers, decode, empty
+from ..core.method.gbuffers import LAYER, REGION_AOV, UV_AOV, GBuffers, decode, empty
 from .scratch_scene import ScratchScene, configure_cycles, float_exr_output
 
 # Sculpt face sets: the integer face attribute Blender keeps them in.
@@ -79,6 +81,8 @@ def render_gbuffers(
     tmpdir: str | os.PathLike | None = None,
     device: str = "CPU",
     region_attribute: str = "material_index",
+    uv: bool = False,
+    uv_map: str = "",
 ) -> GBuffers:
     """Render the G-buffers of mesh object ``obj`` seen by ``camera`` under a distant light.
 
@@ -98,10 +102,12 @@ def render_gbuffers(
     region_attribute: the integer face attribute that gives the region id:
     ``"material_index"`` (the material slot; indices past the last slot count as
     the last, as Blender renders them) or ``FACE_SET_ATTRIBUTE`` (sculpt face
-    sets; a mesh without face sets is region 0).
+    sets; a mesh without face sets is region 0). uv: also render the UV map
+    (``GBuffers.uv``); uv_map: its name ("" for the mesh's active render UV map).
 
     Returns :class:`GBuffers` of shape (H, W). Raises ValueError for a wrong
-    object or camera type, a bad light direction, resolution or sample count.
+    object or camera type, a bad light direction, resolution or sample count, and
+    with ``uv`` for a mesh without a UV map (or without the one named).
     """
     if getattr(obj, "type", None) != "MESH":
         raise ValueError(f"obj must be a mesh object, got {obj!r}")
@@ -121,19 +127,22 @@ def render_gbuffers(
     if region_attribute not in ("material_index", FACE_SET_ATTRIBUTE):
         raise ValueError(f"region_attribute must be 'material_index' or "
                          f"{FACE_SET_ATTRIBUTE!r}, got {region_attribute!r}")
+    if uv:
+        _check_uv_map(obj, uv_map)
     user_scene = bpy.context.scene
     width, height = _resolution(camera, user_scene, resolution)
 
     with ScratchScene(_NAME, remove_new_images=True, tmpdir=tmpdir) as scratch:
         scene = scratch.scene
-        _build_scene(scratch, obj, camera, light, user_scene, width, height, region_attribute)
+        _build_scene(scratch, obj, camera, light, user_scene, width, height, region_attribute,
+                     uv_map if uv else None)
         configure_cycles(scene, int(render_samples), device=device, point_sampled=True,
                          exact_direct_light=True)
         cam_eval, window = _crop_window(scene, obj, camera, width, height) if crop else (
             _evaluated(scene, camera), None)
         center, ortho = _camera_center(cam_eval)
         if window is not None and (window[0] >= window[1] or window[2] >= window[3]):
-            return empty(height, width, center, ortho, window)
+            return empty(height, width, center, ortho, window, uv=uv)
         if window is not None:
             _set_border(scene, window, width, height)
         path = scratch.render("gbuffer.exr")
@@ -141,7 +150,18 @@ def render_gbuffers(
             raise RuntimeError(f"Cycles wrote no G-buffer file at {path}")
         channels = read_multilayer_exr(path)
     slots = len(obj.material_slots) if region_attribute == "material_index" else None
-    return decode(channels, light=light, slots=slots, center=center, ortho=ortho, window=window)
+    return decode(channels, light=light, slots=slots, center=center, ortho=ortho, window=window,
+                  uv=uv)
+
+
+def _check_uv_map(obj, uv_map: str) -> None:
+    layers = obj.data.uv_layers
+    if not len(layers):
+        raise ValueError(f"the scan {obj.name!r} has no UV map, so its texture cannot be "
+                         "reconstructed (add a UV map, or reconstruct it untextured)")
+    if uv_map and uv_map not in layers:
+        raise ValueError(f"the scan {obj.name!r} has no UV map named {uv_map!r} "
+                         f"(it has {', '.join(repr(layer.name) for layer in layers)})")
 
 
 def camera_resolution(camera, scene) -> tuple[tuple[int, int], str]:
@@ -169,9 +189,11 @@ def _resolution(camera, scene, resolution) -> tuple[int, int]:
     return width, height
 
 
-def _build_scene(scratch, obj, camera, light, user_scene, width, height, region_attribute):
+def _build_scene(scratch, obj, camera, light, user_scene, width, height, region_attribute,
+                 uv_map=None):
     """The scratch scene: the scan, the camera and a Sun, the white Lambertian
-    override writing the region AOV, the passes, multilayer EXR output."""
+    override writing the region AOV (and the UV AOV unless ``uv_map`` is None), the
+    passes, multilayer EXR output."""
     scene = scratch.scene
     scene.frame_current = user_scene.frame_current
     render = scene.render
@@ -197,7 +219,10 @@ def _build_scene(scratch, obj, camera, light, user_scene, width, height, region_
     layer.use_pass_diffuse_direct = True
     aov = layer.aovs.add()
     aov.name, aov.type = REGION_AOV, "VALUE"
-    layer.material_override = _override_material(scratch, region_attribute)
+    if uv_map is not None:
+        uv_aov = layer.aovs.add()
+        uv_aov.name, uv_aov.type = UV_AOV, "COLOR"
+    layer.material_override = _override_material(scratch, region_attribute, uv_map)
 
     scene.collection.objects.link(obj)
     scene.collection.objects.link(camera)
@@ -212,7 +237,7 @@ def _build_scene(scratch, obj, camera, light, user_scene, width, height, region_
     scene.collection.objects.link(sun)
 
 
-def _override_material(scratch, region_attribute):
+def _override_material(scratch, region_attribute, uv_map=None):
     material = scratch.new(bpy.data.materials, _NAME)
     if material.node_tree is None:  # Blender < 5.0 creates it on demand
         material.use_nodes = True
@@ -232,6 +257,12 @@ def _override_material(scratch, region_attribute):
     aov = nodes.new("ShaderNodeOutputAOV")
     aov.aov_name = REGION_AOV
     links.new(attribute.outputs["Fac"], aov.inputs["Value"])
+    if uv_map is not None:
+        uv_node = nodes.new("ShaderNodeUVMap")
+        uv_node.uv_map = uv_map  # "": the render UV map
+        uv_out = nodes.new("ShaderNodeOutputAOV")
+        uv_out.aov_name = UV_AOV
+        links.new(uv_node.outputs["UV"], uv_out.inputs["Color"])
     return material
 
 

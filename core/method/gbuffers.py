@@ -5,7 +5,8 @@ Channels (Blender's names, layer ``LAYER``): ``Combined.A`` (coverage),
 ``Normal.XYZ`` and ``Position.XYZ`` (world space, averaged over the pixel's
 samples, background ones giving 0), ``Diffuse Direct.RGB`` (a white Lambertian
 surface under a Sun of strength pi W/m^2: ``vis * max(n.l, 0)``) and the AOV
-``REGION_AOV.X`` (the region id). Images have row 0 at the top, column 0 at the
+``REGION_AOV.X`` (the region id), and when asked for the colour AOV
+``UV_AOV.RGB`` (the scan's UV map: u, v, 0). Images have row 0 at the top, column 0 at the
 left (EXR and numpy order). No bpy; the file is read by
 ``core.capture.photo_io.read_multilayer_exr``.
 """
@@ -18,6 +19,7 @@ import numpy as np
 
 LAYER = "ViewLayer"
 REGION_AOV = "brdf_region"
+UV_AOV = "brdf_uv"
 # Below this n.l the visibility ratio is ill-conditioned; such points count as unlit.
 MIN_COSINE = 1e-6
 
@@ -42,6 +44,8 @@ class GBuffers:
         very far behind the camera on its axis, so that ``normalize(C - P)`` is the
         (parallel) view direction; see ``orthographic``.
     orthographic: True for an orthographic camera.
+    uv: (H, W, 2) float64 the scan's UV map (u right, v up; averaged over the
+        pixel's samples like the normal), NaN on background; None when not rendered.
     window: (row_start, row_stop, col_start, col_stop), half-open, of the rendered
         crop; None when the full frame was rendered; an empty window when the
         object projects outside the frame (nothing rendered). Outside it is
@@ -56,6 +60,7 @@ class GBuffers:
     camera_center: np.ndarray
     orthographic: bool = False
     window: tuple[int, int, int, int] | None = None
+    uv: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -63,9 +68,9 @@ class GBuffers:
         return self.mask.shape
 
 
-def empty(height, width, center, ortho, window) -> GBuffers:
+def empty(height, width, center, ortho, window, uv: bool = False) -> GBuffers:
     """Background everywhere: what a photo whose object projects outside the frame gets."""
-    return GBuffers(
+    return GBuffers(uv=np.full((height, width, 2), np.nan) if uv else None,
         normal=np.zeros((height, width, 3)), position=np.zeros((height, width, 3)),
         visibility=np.zeros((height, width)),
         region=np.full((height, width), -1, dtype=np.int32),
@@ -73,12 +78,12 @@ def empty(height, width, center, ortho, window) -> GBuffers:
         orthographic=ortho, window=window)
 
 
-def decode(channels, *, light, slots, center, ortho, window) -> GBuffers:
+def decode(channels, *, light, slots, center, ortho, window, uv: bool = False) -> GBuffers:
     """The :class:`GBuffers` of one render from its EXR ``channels``
     (``core.capture.photo_io.read_multilayer_exr``). light: (3,) unit world
     direction towards the light. slots: the number of material slots (region ids
     past the last clamp to it), or None for face sets. center, ortho, window: as in
-    :class:`GBuffers`."""
+    :class:`GBuffers`. uv: decode the UV AOV too."""
     def read(pass_name, components):
         try:
             planes = [channels[f"{LAYER}.{pass_name}.{c}"] for c in components]
@@ -109,6 +114,10 @@ def decode(channels, *, light, slots, center, ortho, window) -> GBuffers:
         if slots is not None:  # a face whose index is past the last slot renders with it
             region_value = np.clip(region_value, 0, max(slots - 1, 0))
         region = np.where(mask, region_value, -1)
+        uv_map = None
+        if uv:
+            uv_map = read(UV_AOV, "RG") * scale
+            uv_map = np.where(mask[..., None] & np.isfinite(uv_map), uv_map, np.nan)
     return GBuffers(normal=normal, position=position, visibility=visibility,
                     region=region.astype(np.int32), mask=mask, camera_center=center,
-                    orthographic=ortho, window=window)
+                    orthographic=ortho, window=window, uv=uv_map)

@@ -293,6 +293,50 @@ def test_region_is_face_set():
     assert set(np.unique(g.region[g.mask])) == {0}
 
 
+def _uv_strip(second_map=False):
+    """The strip with a UV map of its own: u = (x + 1.5) / 3, v = 1 - (y + 0.5)
+    (flipped in v, so that a mix-up of u and v or of up and down shows), and
+    optionally a second map that is the first shifted by 0.25 in u."""
+    strip = _strip()
+    layer = strip.data.uv_layers.new(name="scan")
+    for loop in strip.data.loops:  # the mesh's own coordinates: world minus (-1.5, -0.5, 0)
+        co = strip.data.vertices[loop.vertex_index].co
+        layer.data[loop.index].uv = (co.x / 3.0, 1.0 - co.y)
+    if second_map:
+        other = strip.data.uv_layers.new(name="shifted")
+        for loop in strip.data.loops:
+            u, v = layer.data[loop.index].uv
+            other.data[loop.index].uv = (u + 0.25, v)
+        strip.data.uv_layers.active = layer
+        layer.active_render = True
+    return strip
+
+
+def test_uv_map_is_rendered_at_each_pixel():
+    """The UV G-buffer against the map written on the mesh (an affine function of
+    the position, so every pixel's expectation follows from its point)."""
+    strip = _uv_strip(second_map=True)
+    cam = _camera((0.013, 0.029, 5.0), (0.013, 0.029, 0.0), ortho=True, width=64, height=32)
+    g = gbuffer.render_gbuffers(strip, cam, [0.0, 0.0, 1.0], uv=True)
+    m = g.mask
+    assert g.uv.shape == (32, 64, 2) and m.sum() > 500
+    x, y = g.position[..., 0], g.position[..., 1]
+    expected = np.stack([(x + 1.5) / 3.0, 1.0 - (y + 0.5)], axis=-1)
+    np.testing.assert_allclose(g.uv[m], expected[m], atol=1e-5)
+    assert np.isnan(g.uv[~m]).all()
+    shifted = gbuffer.render_gbuffers(strip, cam, [0.0, 0.0, 1.0], uv=True, uv_map="shifted")
+    np.testing.assert_allclose(shifted.uv[m][:, 0], expected[m][:, 0] + 0.25, atol=1e-5)
+    assert gbuffer.render_gbuffers(strip, cam, [0.0, 0.0, 1.0]).uv is None
+
+
+def test_a_scan_without_the_uv_map_gets_one_sentence():
+    cam = _camera((0.013, 0.029, 5.0), (0.013, 0.029, 0.0), ortho=True, width=64, height=32)
+    with pytest.raises(ValueError, match="has no UV map, so its texture"):
+        gbuffer.render_gbuffers(_strip(), cam, [0.0, 0.0, 1.0], uv=True)
+    with pytest.raises(ValueError, match="no UV map named 'other'"):
+        gbuffer.render_gbuffers(_uv_strip(), cam, [0.0, 0.0, 1.0], uv=True, uv_map="other")
+
+
 def test_crop_matches_full_frame():
     cam = _camera((0.3, -6.0, 2.1), CENTER, width=96, height=72)
     sphere = _sphere()
