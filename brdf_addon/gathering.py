@@ -44,6 +44,10 @@ def check_scene(scene) -> None:
         raise ValueError("choose the scan object (a mesh) in the BRDF panel")
     if obj.type != "MESH" or len(obj.data.polygons) == 0:
         raise ValueError(f"the scan {obj.name} is a mesh without faces")
+    if settings.texture:
+        from . import gbuffer
+
+        gbuffer.check_uv_map(obj, settings.uv_map)
     if not len(settings.photos):
         raise ValueError("add at least one lit photo")
     for photo in settings.photos:

@@ -128,7 +128,7 @@ def render_gbuffers(
         raise ValueError(f"region_attribute must be 'material_index' or "
                          f"{FACE_SET_ATTRIBUTE!r}, got {region_attribute!r}")
     if uv:
-        _check_uv_map(obj, uv_map)
+        check_uv_map(obj, uv_map)
     user_scene = bpy.context.scene
     width, height = _resolution(camera, user_scene, resolution)
 
@@ -154,7 +154,9 @@ def render_gbuffers(
                   uv=uv)
 
 
-def _check_uv_map(obj, uv_map: str) -> None:
+def check_uv_map(obj, uv_map: str = "") -> None:
+    """ValueError (one sentence) when the mesh object has no UV map, or none named
+    ``uv_map`` ("": any)."""
     layers = obj.data.uv_layers
     if not len(layers):
         raise ValueError(f"the scan {obj.name!r} has no UV map, so its texture cannot be "

@@ -171,6 +171,41 @@ def build_material(name: str, fit, provenance: dict) -> bpy.types.Material:
     return mat
 
 
+def add_texture(mat, image, uv_map: str = "", model: str = "diffuse") -> None:
+    """Put a textured region's albedo image into a material :func:`build_material`
+    made: an Image Texture on the mesh's UV map (``uv_map``; "" the render map).
+    model "diffuse": the image is the diffuse colour (linked to the group's
+    "Diffuse Color"); "whole": it multiplies every colour input of the group
+    (each input's value times the texel's, by a Vector Math node). ValueError for
+    a material without the group or another model."""
+    if model not in ("diffuse", "whole"):
+        raise ValueError(f"texture model must be 'diffuse' or 'whole', got {model!r}")
+    tree = mat.node_tree
+    group = tree.nodes.get(GROUP_NAME)
+    if group is None or group.type != "GROUP":
+        raise ValueError(f"material {mat.name!r} has no {GROUP_NAME!r} group node")
+    uv = tree.nodes.new("ShaderNodeUVMap")
+    uv.uv_map = uv_map
+    uv.location = (-700, 0)
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.name = tex.label = "BRDF Albedo"
+    tex.image = image
+    tex.location = (-500, 0)
+    tree.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+    if model == "diffuse":
+        tree.links.new(tex.outputs["Color"], group.inputs["Diffuse Color"])
+        return
+    colours = [sock for sock in group.inputs if sock.type == "RGBA"]
+    for k, sock in enumerate(colours):
+        times = tree.nodes.new("ShaderNodeVectorMath")
+        times.operation = "MULTIPLY"
+        times.name = times.label = f"{sock.name} x Albedo"
+        times.location = (-250, 200 - 150 * k)
+        times.inputs[1].default_value = tuple(sock.default_value)[:3]
+        tree.links.new(tex.outputs["Color"], times.inputs[0])
+        tree.links.new(times.outputs["Vector"], sock)
+
+
 # ------------------------------------------------------------------------- bake error
 class _SphereScene:
     """A :class:`ScratchScene` with a unit sphere wearing ``material``, an

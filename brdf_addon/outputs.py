@@ -67,7 +67,8 @@ def _as_image(name: str, picture: np.ndarray) -> bpy.types.Image:
 
 def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
                bake: bool = True, fits: dict | None = None,
-               capture: dict | None = None, basis: dict | None = None) -> dict:
+               capture: dict | None = None, basis: dict | None = None,
+               textured=None) -> dict:
     """Write tables, pictures, materials and ``report.json``; fill ``scene.brdf.results``.
 
     Returns the report dict. Existing files of the same name in the output
@@ -76,6 +77,9 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
     a region whose winner changed since (Cycles selection) is fitted here.
     ``capture``: what was applied to the photos (``gather_capture``), reported.
     ``basis``: which PCA basis the run stood on (``prefs.load_planned``), reported.
+    ``textured``: a textured run's ``core.method.textured.TexturedResult``: each
+    region's texture is written beside its table (:func:`_write_texture`) and the
+    material reads it.
     """
     settings = scene.brdf
     out = output_dir(scene)
@@ -122,11 +126,20 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
                 entry.plot = _as_image(f"BRDF {label} photo vs render", picture)
             summary["table"] = table_path.name
             timings[f"outputs_region_{r.region}"] = time.perf_counter() - t0
+            texture = None if textured is None else textured.textures.get(r.region)
+            fit = (fits or {}).get(r.region)
+            fit = fit[1] if fit is not None and fit[0] == r.winner else None
+            if bake or texture is not None:
+                from ..core.bake import fitting
+
+                fit = fit if fit is not None else fitting.fit(r.table)
+            image = None
+            if texture is not None:
+                summary["texture"], image = _write_texture(out, r, texture, fit, label)
+                image = (image, texture.model)
             if bake:
                 t0 = time.perf_counter()
-                fit = (fits or {}).get(r.region)
-                fit = fit[1] if fit is not None and fit[0] == r.winner else None
-                summary["material"] = _bake(scene, r, label, table_path, entry, fit)
+                summary["material"] = _bake(scene, r, label, table_path, entry, fit, image)
                 timings[f"bake_region_{r.region}"] = time.perf_counter() - t0
         regions.append(summary)
     report = {
@@ -155,18 +168,47 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
     return report
 
 
-def _bake(scene, r, label, table_path, entry, fit=None) -> dict:
-    """Fit the Cycles lobes to the table (unless given), build a NEW material,
-    measure its bake error."""
-    from ..core.bake import fitting
+def _write_texture(out: pathlib.Path, r, texture, fit, label: str):
+    """Write a region's texture files; returns (report entry, the new Blender image
+    of the albedo file, for the material). The albedo file's meaning follows the
+    texture's model (``core.method.textured``): "diffuse": the diffuse colour per
+    texel (the lobe fit's, times the texel's albedo over the region's), a 16-bit
+    sRGB PNG; "whole": the multiplier of every colour (mean 1 over the measured
+    texels), linear, an EXR (its values pass 1)."""
+    from ..core.method import texture_io
+
+    relative = texture.relative().reshape(*texture.map.shape, 3)
+    if texture.model == "diffuse":
+        name = f"brdf_{r.region}_albedo.png"
+        clipped = texture_io.write_albedo(out / name, relative * fit.params.diffuse, "PNG")
+        meaning = "diffuse color per texel (16-bit sRGB PNG)"
+    else:
+        name = f"brdf_{r.region}_albedo.exr"
+        clipped = texture_io.write_albedo(out / name, relative, "EXR")
+        meaning = "multiplier of every color of the material per texel (linear EXR)"
+    coverage = f"brdf_{r.region}_coverage.png"
+    texture_io.write_coverage(out / coverage, texture.map.coverage_image())
+    image = bpy.data.images.load(str(out / name), check_existing=False)
+    image.name = f"BRDF {label} albedo"
+    image.colorspace_settings.name = "sRGB" if texture.model == "diffuse" else "Non-Color"
+    entry = texture.summary() | {"albedo": name, "coverage": coverage, "meaning": meaning,
+                                 "clipped_texels": clipped}
+    return entry, image
+
+
+def _bake(scene, r, label, table_path, entry, fit, image=None) -> dict:
+    """Build a NEW material from the lobe fit (with ``image`` = (the texture's
+    Blender image, its model), if any), measure its bake error (before the texture
+    goes in: the error is the shared shape's, against the table)."""
     from . import material
 
-    fit = fit if fit is not None else fitting.fit(r.table)
     provenance = {"table_path": str(table_path),
                   "settings": props.settings_dict(scene.brdf),
                   "region": int(r.region), "kl": float(r.kl[r.winner]), "trial": int(r.winner)}
     mat = material.build_material(f"BRDF {label}", fit, provenance)
     errors = material.bake_error(mat, r.table, BAKE_LIGHTS)
+    if image is not None:
+        material.add_texture(mat, image[0], scene.brdf.uv_map, image[1])
     mat["brdf_bake_error"] = json.dumps(errors, default=_json_default)
     entry.material = mat
     entry.bake_error = float(errors["max"])

@@ -182,6 +182,12 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
         for name in ("samples", "sampler", "trials", "subset_fraction",
                      "min_reliable_samples", "refine_to_photos"):
             col.prop(s, name)
+        col = layout.column(heading="Texture")
+        col.prop(s, "texture")
+        sub = col.column()
+        sub.active = s.texture
+        sub.prop(s, "texture_size")
+        sub.prop(s, "uv_map")
         col = layout.column(heading="Selection")
         col.prop(s, "kl_path")
         col.prop(s, "kl_bins")

@@ -135,7 +135,8 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     attribute = ("material_index" if settings.region_mode == "MATERIAL_SLOT"
                  else gbuffer.FACE_SET_ATTRIBUTE)
     g = gbuffer.render_gbuffers(settings.target, photo.camera, light, resolution=(w, h),
-                                device=prefs.cycles_device(), region_attribute=attribute)
+                                device=prefs.cycles_device(), region_attribute=attribute,
+                                uv=settings.texture, uv_map=settings.uv_map)
     if not g.mask.any():
         raise ValueError(f"the scan is not in view of photo {photo.name}'s camera")
     cosine = np.einsum("hwc,c->hw", g.normal, light)
@@ -175,7 +176,7 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
             photo=radiance, normal=g.normal, position=g.position, visibility=g.visibility,
             region=g.region, camera_center=g.camera_center, light=light,
             irradiance=np.array(photo.irradiance, dtype=np.float64), mask=mask,
-            name=photo.name, saturated=saturated),
+            name=photo.name, saturated=saturated, uv=g.uv),
         report=report, reference=reference)
 
 

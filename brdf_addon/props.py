@@ -304,6 +304,20 @@ class BRDFSettings(PropertyGroup):
         "against 0.40), and with noisy normals it can overshoot a mirror's peak. Off by "
         "default")
 
+    # texture (issue 16)
+    texture: BoolProperty(
+        name="Texture", default=False,
+        description="Reconstruct a color per texel on the scan's UV map: one shared BRDF "
+        "shape per region, its albedo per texel from the lit photos (the scan's own "
+        "texture as the prior and where no photo sees it). Needs a UV map")
+    texture_size: IntProperty(
+        name="Texture Size", default=0, min=0, max=8192,
+        description="Width and height in texels of the reconstructed texture; 0: the "
+        "scan's own texture's size, or 512 without one")
+    uv_map: StringProperty(
+        name="UV Map", default="",
+        description="The scan's UV map the texture lies on (empty: its active render map)")
+
     # KL selection
     kl_path: EnumProperty(
         name="Selection", default=_BALANCED["kl_path"], update=_preset_value_changed,

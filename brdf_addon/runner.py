@@ -88,6 +88,11 @@ class Run:
         self._exposure = photo_input.exposure_plan(scene)
         self._basis_plan = prefs.basis_plan(scene)  # refused here, before any work
         self._basis_info = None
+        # (shape, prior) of a textured run, read here, before any work (a missing texture
+        # file is refused now), and its core.method.textured.TexturedResult
+        self._texture, self._texture_note = (
+            self._texture_plan() if scene.brdf.texture else (None, None))
+        self._textured = None
 
     @property
     def message(self) -> str:
@@ -132,8 +137,17 @@ class Run:
             def progress(f, msg):
                 self.progress, self.message = 0.3 + 0.6 * f, msg
 
-            result = pipeline.run(basis, self._inputs, self._settings, progress=progress,
-                                  cancelled=self._cancelled)
+            if self._texture is not None:
+                from ..core.method import textured
+
+                shape, prior = self._texture
+                self._textured = textured.run(
+                    basis, self._inputs, self._settings, textured.TextureSettings(shape=shape),
+                    prior=prior, progress=progress, cancelled=self._cancelled)
+                result = self._textured.result
+            else:
+                result = pipeline.run(basis, self._inputs, self._settings, progress=progress,
+                                      cancelled=self._cancelled)
             if self.bake:  # the lobe fits are numpy: here, not in the main thread
                 from ..core.bake import fitting
 
@@ -174,6 +188,8 @@ class Run:
             self._photo += 1
             if self._photo == self._n_photos:
                 self._inputs, self._capture = gathering.capture_inputs(self._gathered)
+                if self._texture_note is not None:
+                    self._capture["texture"] = self._texture_note
             self.progress = 0.3 * self._photo / self._n_photos
             self._timings["gbuffers"] = self._timings.get("gbuffers", 0.0) + (
                 time.perf_counter() - t0)
@@ -201,10 +217,24 @@ class Run:
             return False
         self.progress, self.message = 0.9, "writing results"
         self._timings["total_before_outputs"] = time.perf_counter() - self._t0
-        self.report = outputs.write_back(self.scene, self._inputs, value, self._timings, self.bake,
-                                         self._fits, self._capture, self._basis_info)
+        self.report = outputs.write_back(
+            self.scene, self._inputs, value, self._timings, self.bake, self._fits, self._capture,
+            self._basis_info, textured=self._textured)
         self.progress, self.message = 1.0, "done"
         return True
+
+    def _texture_plan(self):
+        """((shape, prior), note) of the albedo image: the scan's own texture as the
+        prior (``scan_texture``), read in the main thread; the note is the report's."""
+        from . import scan_texture
+
+        s = self.scene.brdf
+        image = scan_texture.find_image(s.target)
+        shape = scan_texture.texture_shape(image, s.texture_size)
+        prior = None if image is None else scan_texture.read_prior(image, shape)
+        note = {"shape": list(shape), "uv_map": s.uv_map or "(active render map)",
+                "prior": None if image is None else image.name}
+        return (shape, prior), note
 
     def _cycles_step(self, result) -> bool:
         """The accurate selection path, one candidate per step; True while work remains."""
@@ -221,7 +251,9 @@ class Run:
         r, t = self._cycles_queue.pop(0)
         s = self.scene.brdf
         self.message = f"region {r.region}: Cycles render of trial {t + 1}/{len(r.candidates)}"
-        kl = cycles_select.score_candidate(self.scene, self._inputs, r.region,
+        # a textured run compares the candidates with the photos at the reference colour
+        inputs = self._inputs if self._textured is None else self._textured.inputs
+        kl = cycles_select.score_candidate(self.scene, inputs, r.region,
                                            r.candidates[t].astype(np.float64), s.kl_samples,
                                            s.kl_bins, device=prefs.cycles_device())
         self._cycles_kl.setdefault(r.region, []).append(float(kl.mean()))
@@ -236,6 +268,8 @@ class Run:
                 r.table = r.candidates[winner].astype(np.float64)
             elif winner != r.refinement.get("trial"):
                 pipeline.refine_chosen(r)  # the refit of the Cycles path's winner
+            if self._textured is not None and winner != r.selection["fast_winner"]:
+                self._textured.retexture(r)  # the texture under the new winner
         done = self._cycles_total - len(self._cycles_queue)
         self.progress = 0.85 + 0.05 * done / self._cycles_total
         self._timings["cycles_selection"] = self._timings.get("cycles_selection", 0.0) + (

@@ -374,5 +374,5 @@ def _reason(constant: bool, channel_stats: list, settings: AlbedoSettings) -> st
     if not constant:
         return f"Textured: {numbers}."
     if worst["p"] >= settings.p_level:
-        return f"One constant colour: the variation is not significant; {numbers}."
-    return f"One constant colour: the variation is below the photos' noise; {numbers}."
+        return f"One constant color: the variation is not significant; {numbers}."
+    return f"One constant color: the variation is below the photos' noise; {numbers}."

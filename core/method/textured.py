@@ -135,12 +135,25 @@ class TexturedResult:
     :class:`RegionTexture`. rounds: per fit a dict per region of the texture's
     median relative change from the previous estimate (None for the first), the
     model and the chosen trial's KL. timings: seconds per stage (``albedo``,
-    ``initial_albedo``; the method's own are in ``result``)."""
+    ``initial_albedo``; the method's own are in ``result``). inputs: the photos
+    of the last fit (brought to the reference colours), for a selection that
+    renders the candidates (the Cycles path). Call :meth:`retexture` after
+    changing a region's table (another winner)."""
 
     result: pipeline.PipelineResult
     textures: dict
     rounds: list
     timings: dict
+    inputs: list = dataclasses.field(default_factory=list, repr=False)
+    _observations: tuple | None = dataclasses.field(default=None, repr=False)
+
+    def retexture(self, region: pipeline.RegionResult) -> None:
+        """The region's texture estimated again under its current ``table``."""
+        raw, texel, shape, prior, settings = self._observations
+        at = np.flatnonzero((raw.region == region.region) & (texel >= 0))
+        if len(at) and region.table is not None:
+            self.textures[region.region] = estimate_texture(
+                region.table, raw.subset(at), texel[at], shape, settings, prior=prior)
 
     def summary(self) -> dict:
         out = self.result.summary()
@@ -385,7 +398,9 @@ def run(
         if settled or k + 1 == texture.rounds:
             break
         current = normalised_inputs(inputs, uvs, textures, tables, shape)
-    return TexturedResult(result=result, textures=textures, rounds=rounds, timings=timings)
+    return TexturedResult(result=result, textures=textures, rounds=rounds, timings=timings,
+                          inputs=current,
+                          _observations=(raw, texel, shape, prior, texture.albedo))
 
 
 def _change(old: RegionTexture | None, new: RegionTexture) -> float | None:

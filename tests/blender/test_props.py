@@ -200,6 +200,17 @@ def test_job_refine_to_photos_reaches_the_pipeline(scene):
     assert props.settings_dict(scene.brdf)["refine_to_photos"] is True
 
 
+def test_job_texture_settings_are_applied_and_checked(scene):
+    assert scene.brdf.texture is False  # the default: untextured, as the paper
+    job_module.apply(_job(scene, {"texture": True, "texture_size": 256, "uv_map": "scan"}),
+                     scene)
+    s = scene.brdf
+    assert (s.texture, s.texture_size, s.uv_map) == (True, 256, "scan")
+    assert props.settings_dict(s)["texture"] is True
+    with pytest.raises(job_module.JobError, match="texture_size = 9000"):
+        job_module.apply(_job(scene, {"texture_size": 9000}), scene)
+
+
 def test_job_unknown_sampler_is_one_sentence(scene):
     with pytest.raises(job_module.JobError) as error:
         job_module.apply(_job(scene, {"sampler": "paper"}), scene)

@@ -108,7 +108,7 @@ def test_a_homogeneous_region_gets_a_constant():
     texel, rho, d, s = plane_observations(tex)
     result = albedo.estimate(texel, rho, d, s, SHAPE)
     assert result.constant, result.reason
-    assert result.reason.startswith("One constant colour")
+    assert result.reason.startswith("One constant color")
     assert np.ptp(result.albedo, axis=0).max() == 0.0
     np.testing.assert_allclose(result.reference, [0.5, 0.3, 0.1], rtol=0.005)
 
