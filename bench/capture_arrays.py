@@ -42,7 +42,7 @@ def _key(**options) -> str:
 
 def gbuffers(resolution=(240, 180), n_views: int = 6, lit_views=(0, 2, 4), light=LIGHT,
              seed: int = 0, scan_options: dict | None = None, mesh=None,
-             cache: bool = True) -> dict:
+             cache: bool = True, uv: bool = False) -> dict:
     """G-buffers of the truth and the scan for each lit camera, (V, H, W, ...) arrays.
 
     Returns a dict: ``truth_normal``, ``truth_position``, ``scan_normal``,
@@ -55,6 +55,9 @@ def gbuffers(resolution=(240, 180), n_views: int = 6, lit_views=(0, 2, 4), light
     ``light`` (3,) unit; ``normal_error_deg`` (median, 90th percentile) of the
     scan's normals against the truth's over pixels both cover; ``render_s``
     wall seconds of the Cycles G-buffer renders (0 when read from the cache).
+    uv: also ``truth_uv`` and ``scan_uv`` (V, H, W, 2) float32, the meshes' UV map
+    (the scan keeps the truth's through the decimation; NaN on background), for
+    textured captures (the mesh needs a UV map: Spot has one, the bunny none).
     Resets Blender to an empty scene when it has to render.
     """
     from brdf_reconstruct.core.brdf import basis
@@ -65,14 +68,15 @@ def gbuffers(resolution=(240, 180), n_views: int = 6, lit_views=(0, 2, 4), light
     key = _key(resolution=list(resolution), n_views=n_views, lit_views=list(lit_views),
                light=light.round(9).tolist(), seed=seed, scan_options=scan_options or {},
                mesh=mesh.name if mesh else {"bunny": "stanford-bunny.obj"}.get(
-                   capture.default_subject(), "suzanne"), version=2)
+                   capture.default_subject(), "suzanne"), version=2,
+               **({"uv": True} if uv else {}))
     path = basis.default_cache_dir() / "captures" / f"arrays_{key}.npz"
     if cache and path.is_file():
         with np.load(path) as data:
             out = {k: data[k] for k in data.files}
         out["render_s"] = 0.0
         return out
-    out = _render(resolution, n_views, lit_views, light, seed, scan_options, mesh)
+    out = _render(resolution, n_views, lit_views, light, seed, scan_options, mesh, uv)
     if cache:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp.npz")
@@ -94,18 +98,24 @@ def build_scene(resolution=(240, 180), n_views: int = 6, seed: int = 0,
                                    scan_options, mesh, points=np.zeros((1, 3)))
 
 
-def _render(resolution, n_views, lit_views, light, seed, scan_options, mesh) -> dict:
+def _render(resolution, n_views, lit_views, light, seed, scan_options, mesh, uv=False) -> dict:
     from brdf_reconstruct.brdf_addon import gbuffer
 
     t0 = time.perf_counter()
     truth, scan, cameras = build_scene(resolution, n_views, seed, scan_options, mesh)
     scan_s = 0.0
-    parts = {name: [] for name in FIELDS}
+    fields = FIELDS + (("truth_uv", "scan_uv") if uv else ())
+    parts = {name: [] for name in fields}
     for i in lit_views:
-        a = gbuffer.render_gbuffers(truth, cameras[i], light, resolution=tuple(resolution))
+        a = gbuffer.render_gbuffers(truth, cameras[i], light, resolution=tuple(resolution),
+                                    uv=uv)
         t1 = time.perf_counter()
-        b = gbuffer.render_gbuffers(scan, cameras[i], light, resolution=tuple(resolution))
+        b = gbuffer.render_gbuffers(scan, cameras[i], light, resolution=tuple(resolution),
+                                    uv=uv)
         scan_s += time.perf_counter() - t1
+        if uv:
+            parts["truth_uv"].append(a.uv)
+            parts["scan_uv"].append(b.uv)
         for name, value in (("truth_normal", a.normal), ("truth_position", a.position),
                             ("truth_visibility", a.visibility), ("truth_mask", a.mask),
                             ("scan_normal", b.normal), ("scan_position", b.position),
@@ -113,7 +123,7 @@ def _render(resolution, n_views, lit_views, light, seed, scan_options, mesh) -> 
                             ("camera_center", b.camera_center)):
             parts[name].append(value)
     out = {name: np.stack(value) for name, value in parts.items()}
-    for name in FIELDS:
+    for name in fields:
         if out[name].dtype == np.float64 and name != "camera_center":
             out[name] = out[name].astype(np.float32)
     both = out["truth_mask"] & (out["scan_region"] >= 0)
@@ -160,3 +170,35 @@ def photo_inputs(arrays: dict, table: np.ndarray, *, irradiance=1.0, noise: floa
             camera_center=arrays["camera_center"][i], light=light, irradiance=irradiance,
             name=f"view{i}"))
     return inputs
+
+
+def textured_photo_inputs(arrays: dict, colour: np.ndarray, rest: np.ndarray,
+                          texture: np.ndarray, shape, *, irradiance=1.0, noise: float = 0.0,
+                          seed: int = 0) -> list:
+    """Photos of a textured material on the ground truth's geometry, with the scan's
+    G-buffers and UV map (``gbuffers(uv=True)``).
+
+    The photo is ``rest`` shaded plus, per pixel, the texel's relative albedo
+    (``texture``: (height * width, 3) on the truth's UV map, ``shape`` = (height,
+    width)) times ``colour`` shaded (the part of the table the texture scales;
+    ``testkit.synthetic.colour_tables``). Otherwise as :func:`photo_inputs`."""
+    import dataclasses
+
+    from brdf_reconstruct.core.method import albedo
+
+    base = photo_inputs(arrays, rest, irradiance=irradiance)
+    coloured = photo_inputs(arrays, colour, irradiance=irradiance)
+    rng = np.random.default_rng(seed)
+    out = []
+    for i, (b, c) in enumerate(zip(base, coloured, strict=True)):
+        uv = np.asarray(arrays["truth_uv"][i], dtype=np.float64)
+        texel = albedo.texel_index(uv.reshape(-1, 2), shape).reshape(uv.shape[:2])
+        scale = np.where((texel >= 0)[..., None], texture[np.maximum(texel, 0)], 1.0)
+        photo = b.photo + scale * c.photo
+        if noise > 0.0:
+            photo *= 1.0 + noise * rng.standard_normal(photo.shape)
+            np.maximum(photo, 0.0, out=photo)
+        out.append(dataclasses.replace(b, photo=photo, uv=np.asarray(arrays["scan_uv"][i],
+                                                                     dtype=np.float64)))
+    return out
+

@@ -140,6 +140,21 @@ class AlbedoMap:
         return out
 
 
+def uniform(shape, reason: str) -> AlbedoMap:
+    """One albedo of 1 for every texel, none measured (coverage FILLED): the map of
+    a region whose observations constrain no color; ``reason`` says why."""
+    height, width = _shape(shape)
+    n = height * width
+    return AlbedoMap(shape=(height, width), albedo=np.ones((n, 3)),
+                     coverage=np.full(n, FILLED, dtype=np.uint8),
+                     observations=np.zeros(n, dtype=np.int64), reference=np.ones(3),
+                     constant=True, reason=reason,
+                     stats={"channels": [], "texels": {COVERAGE_NAMES[FILLED]: n,
+                                                       COVERAGE_NAMES[INFERRED]: 0,
+                                                       COVERAGE_NAMES[MEASURED]: 0},
+                            "prior_scale": None})
+
+
 def texel_index(uv, shape) -> np.ndarray:
     """(N,) int64 flat texel index (row * width + column) of UV coordinates.
 
@@ -224,11 +239,15 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None,
     keep = texel >= 0
     texel, rho, diffuse, specular = texel[keep], rho[keep], diffuse[keep], specular[keep]
     count = np.bincount(texel, minlength=n_texels)
-
-    fits = [_channel(texel, rho[:, c], diffuse[:, c], specular[:, c], n_texels, settings)
+    # the fits run over the texels that have observations only (a 4k texture has
+    # 16 M texels, a region's photos see a few hundred thousand), then are scattered
+    used, local = np.unique(texel, return_inverse=True)
+    fits = [_channel(local, rho[:, c], diffuse[:, c], specular[:, c], len(used), settings)
             for c in range(3)]
-    a = np.stack([f[0] for f in fits], axis=1)  # (T, 3) data-only estimates
-    h = np.stack([f[1] for f in fits], axis=1)  # (T, 3) their precisions
+    a = np.zeros((n_texels, 3))  # data-only estimates
+    h = np.zeros((n_texels, 3))  # their precisions (0: no data)
+    a[used] = np.stack([f[0] for f in fits], axis=1)
+    h[used] = np.stack([f[1] for f in fits], axis=1)
     # measured: the grey level (the channels' mean) known to max_relative_error
     constrained = (h > _TINY).all(axis=1)
     grey = a.mean(axis=1)
@@ -252,7 +271,7 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None,
         prior_scale, albedo = _with_prior(a, h, measured, prior, reference, settings)
 
     coverage = np.full(n_texels, FILLED, dtype=np.uint8)
-    if prior is not None:
+    if prior is not None and not constant:  # a constant region takes nothing from it
         coverage[np.isfinite(prior).all(axis=1) & np.isfinite(albedo).all(axis=1)] = INFERRED
     coverage[measured] = MEASURED
     if constant:

@@ -185,6 +185,8 @@ def colour_part(values, delta, cap: float = CAP) -> tuple[np.ndarray, np.ndarray
     rest. values: (N, 3); delta: (3,); cap: CAP (the diffuse model) or inf (the
     whole value)."""
     values = np.asarray(values, dtype=np.float64)
+    if np.isinf(cap):  # the whole value (whatever the level: inf * 0 would be NaN)
+        return values, np.zeros_like(values)
     d = np.minimum(values, cap * np.asarray(delta, dtype=np.float64))
     return d, values - d
 
@@ -243,7 +245,9 @@ def estimate_texture(table, samples, texel, shape, settings: albedo_.AlbedoSetti
     module docstring), the one whose residuals are the quieter kept. samples: the
     region's observations; texel: (N,) theirs (-1 none). ValueError when neither
     model's observations constrain a texel. The diffuse model is kept unless the
-    whole one is clearly quieter (``WHOLE_MARGIN``) or the only one that fits."""
+    whole one is clearly quieter (``WHOLE_MARGIN``) or the only one that fits.
+    When neither constrains a texel, the region keeps the table's own color
+    (``albedo.uniform``; the reason says why)."""
     at = np.flatnonzero(texel >= 0)
     cells = samples.cells[at]
     values = np.asarray(table)[:, cells[:, 0], cells[:, 1], cells[:, 2]].T
@@ -258,8 +262,9 @@ def estimate_texture(table, samples, texel, shape, settings: albedo_.AlbedoSetti
             errors.append(str(error))
             continue
         noise[name] = float(np.mean([c["noise"] for c in fits[name].stats["channels"]]))
-    if not fits:
-        raise ValueError(errors[0])
+    if not fits:  # nothing constrains a color (a black region): one, the table's own
+        m = albedo_.uniform(shape, f"One constant color: {errors[0]}.")
+        return RegionTexture(map=m, model="diffuse", delta=delta, noise={})
     model = "diffuse" if "diffuse" in noise else "whole"
     if "whole" in noise and noise["whole"] < WHOLE_MARGIN * noise.get("diffuse", np.inf):
         model = "whole"

@@ -131,3 +131,16 @@ def test_a_missing_uv_map_name_is_refused(textured):
     with pytest.raises(ValueError, match="no UV map named 'NoSuchMap'"):
         runner.Run(built["scene"], threaded=False)
 
+
+
+def test_a_textured_run_with_the_cycles_selection(textured):
+    """The Cycles path scores the candidates against the photos at the reference
+    color and keeps a texture for its winner."""
+    built, _ = textured
+    s = built["scene"].brdf
+    s.kl_path, s.kl_samples = "CYCLES", 1
+    report = runner.Run(built["scene"], threaded=False, bake=False).run()
+    region = report["regions"][0]
+    assert region["selection"]["path"] == "cycles"
+    assert region["texture"]["albedo"] == "brdf_0_albedo.png"
+    assert (built["dir"] / "out" / "brdf_0_albedo.png").is_file()

@@ -111,6 +111,14 @@ def test_a_homogeneous_region_gets_a_constant():
     assert result.reason.startswith("One constant color")
     assert np.ptp(result.albedo, axis=0).max() == 0.0
     np.testing.assert_allclose(result.reference, [0.5, 0.3, 0.1], rtol=0.005)
+    # given a prior, a constant region still takes nothing from it (no texel "inferred")
+    row, _ = np.divmod(texel, SHAPE[1])
+    keep = row >= 4
+    with_prior = albedo.estimate(texel[keep], rho[keep], d[keep], s[keep], SHAPE,
+                                 prior=texture(seed=11))
+    assert with_prior.constant
+    assert not (with_prior.coverage == albedo.INFERRED).any()
+    assert (with_prior.coverage[: 4 * SHAPE[1]] == albedo.FILLED).all()
 
 
 @pytest.mark.parametrize("variation, constant", [(0.002, True), (0.05, False)])

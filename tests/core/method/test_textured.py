@@ -144,3 +144,30 @@ def test_colour_part_caps_the_scaling_at_twice_the_diffuse_level():
 def test_the_diffuse_level_of_a_lambert_table_is_its_albedo_over_pi(heldout_tables):
     level = textured.diffuse_level(heldout_tables["heldout_lambert_grey"])
     np.testing.assert_allclose(level, 0.18 / np.pi, rtol=1e-6)
+
+
+def test_the_whole_model_of_a_table_without_diffuse_has_no_nan():
+    values = np.array([[0.0, 0.5, 3.0]])
+    d, s = textured.colour_part(values, np.zeros(3), np.inf)  # a mirror: delta 0
+    np.testing.assert_array_equal(d, values)
+    assert np.isfinite(s).all()
+
+
+def test_a_region_whose_observations_constrain_no_color_keeps_the_tables(heldout_tables):
+    """A black table (nothing scales) under black photos: one constant color of 1 and a
+    reason, not an error that would end the run."""
+    from brdf_reconstruct.core.method import observations
+
+    n = 50
+    cells = np.tile([[10, 20, 30]], (n, 1))
+    samples = observations.Samples(
+        n=np.tile([0.0, 0.0, 1.0], (n, 1)), l=np.tile([0.0, 0.0, 1.0], (n, 1)),
+        v=np.tile([0.0, 0.0, 1.0], (n, 1)), rho=np.zeros((n, 3)), radiance=np.zeros((n, 3)),
+        irradiance=np.ones((n, 3)), cells=cells, view=np.zeros(n, dtype=np.int64),
+        pixel=np.zeros((n, 2), dtype=np.int64), region=np.zeros(n, dtype=np.int64),
+        curvature=np.zeros(n))
+    black = np.zeros_like(heldout_tables["heldout_lambert_grey"])
+    t = textured.estimate_texture(black, samples, np.arange(n) % 16, (4, 4),
+                                  albedo.AlbedoSettings())
+    assert t.map.constant and t.map.reason.startswith("One constant color: no observation")
+    assert (t.relative() == 1.0).all() and (t.map.coverage == albedo.FILLED).all()
