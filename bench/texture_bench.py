@@ -1,0 +1,276 @@
+"""Textured regions on the numpy scene (issue 16): the albedo per texel and the shared
+BRDF shape of ``core.method.textured``, against the truth the photos were made from.
+
+    .venv/bin/python bench/texture_bench.py [--objects numpy,spot] [--seeds S] [--quick]
+
+Two objects. **Spot** (``--objects spot``): the capture of ``bench/photo_bench.py``
+(``capture_arrays``: three lit views of 240 x 180, photos shaded on the truth's
+Cycles G-buffers, the degraded "photogrammetry" mesh as the scan, or the truth's
+own G-buffers, "exact"), with Spot's own UV map (which the degraded mesh keeps)
+and a 64 x 64 texture of 8-texel patches. **The numpy scene** (``numpy``): the
+tests' height field (``testkit.synthetic``, 96 x 96 pixels, an
+orthographic camera, three distant lights, 1 % photo noise), its UV map the plane's
+(x, y), and a 24 x 24 texture of 4-texel patches times a 1-texel checker
+(``synthetic.patch_texture``, 17:1 or more, a new draw per seed). The scan is the
+truth's own G-buffers ("exact") or the blunted height field ("blunted", a 3-pixel
+Gaussian and noise, as ``tests/core/method/test_pipeline.py``'s).
+
+What the texture scales, the truth (independent of the estimator's model):
+- the analytic held-out materials with a Lambert or Oren-Nayar lobe: that lobe,
+  under the coat where there is one (``synthetic.colour_tables``), "diffuse";
+- the analytic metals and the measured materials (one per class), whose split is
+  unknown: the whole table, "whole" (a tinted metal, rust).
+
+Per material, scan and seed, with Balanced's settings (20 samples x 16 trials, fast
+KL) and the default basis without the material (``common.default_basis_without``):
+- ``albedo_error``: the median over measured texels of the relative error of the
+  texture's pattern (the estimate and the truth each over their mean on those texels);
+  ``albedo_error_floor``: the same with the true table as the shared shape (what the
+  scan's normals alone cost);
+- ``sphere``: the rendered-sphere error (``metrics.sphere_error``) of the shared
+  shape (``textured``), of the method on the same photos untextured (``untextured``:
+  the photos made with a texture of 1) and on the textured photos as they are
+  (``naive``);
+- the model chosen, whether the region got a constant, the fits made, seconds.
+
+Writes ``bench/results/texture.json`` and ``texture.png`` (``--quick``:
+``texture_quick.*``, 4 materials). About 20 minutes per seed on the 2-core machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import common
+import numpy as np
+
+from brdf_reconstruct.core.brdf import metrics
+from brdf_reconstruct.core.method import albedo, pipeline, textured
+from testkit import synthetic
+
+RES = 96
+SHAPE = (24, 24)
+SETTINGS = dict(n_samples=20, n_trials=16)  # Balanced's
+SCANS = ("exact", "blunted")
+SPOT_SHAPE = (64, 64)
+OBJECTS = ("numpy", "spot")
+
+
+def truth_parts(name: str):
+    """(colour part, rest, kind) of a material's table: what its texture scales."""
+    table = common.heldout_table(name)
+    if not common.is_measured(name):
+        colour, rest = synthetic.colour_tables(common.heldout_spec(name))
+        if np.nanmax(colour) > 0.0:
+            return colour, rest, "diffuse"
+    return table, np.zeros_like(table), "whole"
+
+
+def scene(scan: str):
+    z = synthetic.height_field(RES)
+    truth = synthetic.gbuffer_from_heights(z)
+    seen = truth if scan == "exact" else synthetic.gbuffer_from_heights(
+        synthetic.blunted(z, rng=1))
+    return truth, seen
+
+
+def inputs(colour, rest, texture, truth, seen, seed: int):
+    uv = synthetic.height_field_uv(seen)
+    region = np.zeros((RES, RES), dtype=np.int64)
+    out = []
+    for i in (0, 1, 2):
+        light = synthetic.LIGHTS[i]
+        photo = synthetic.textured_photo(colour, rest, texture, SHAPE, truth, light,
+                                         noise=0.01, rng=100 * seed + i)
+        out.append(pipeline.PhotoInput(
+            photo=photo, normal=seen.normal, position=seen.position,
+            visibility=np.ones((RES, RES)), region=region, camera_center=seen.camera_center,
+            light=light, name=f"photo{i}", uv=uv))
+    return out
+
+
+def spot_arrays() -> dict:
+    """Spot's capture arrays with UVs: {"exact": ..., "blunted": ...} (the degraded scan)."""
+    import capture_arrays
+    import photo_bench
+
+    from testkit import measured
+
+    degraded = capture_arrays.gbuffers(mesh=measured.DATA / "spot.obj", uv=True)
+    exact = photo_bench.exact_scan(degraded)
+    exact["scan_uv"] = degraded["truth_uv"]
+    return {"exact": exact, "blunted": degraded}
+
+
+def one(name: str, scan: str, seed: int, spot: dict | None = None) -> dict:
+    basis = common.default_basis_without(name)
+    table = common.heldout_table(name)
+    colour, rest, kind = truth_parts(name)
+    shape = SHAPE if spot is None else SPOT_SHAPE
+    tex = synthetic.patch_texture(shape, patch=4 if spot is None else 8, seed=seed)
+    if spot is None:
+        truth, seen = scene(scan)
+
+        def make(texture):
+            return inputs(colour, rest, texture, truth, seen, seed)
+    else:
+        import capture_arrays
+
+        def make(texture):
+            return capture_arrays.textured_photo_inputs(spot[scan], colour, rest, texture,
+                                                        shape, noise=0.01, seed=seed)
+    settings = pipeline.PipelineSettings(seed=seed, **SETTINGS)
+    flat = pipeline.run(basis, make(np.ones_like(tex)), settings).regions[0]
+    photos = make(tex)
+    naive = pipeline.run(basis, photos, settings).regions[0]
+    t0 = time.perf_counter()
+    result = textured.run(basis, photos, settings, textured.TextureSettings(shape=shape))
+    seconds = time.perf_counter() - t0
+    region = result.result.regions[0]
+    t = result.textures[0]
+    measured = t.map.coverage == albedo.MEASURED
+    floor = _floor(table, photos, tex, shape)
+    return {
+        "object": "numpy" if spot is None else "spot", "material": name, "scan": scan,
+        "seed": seed, "truth": kind, "model": t.model,
+        "constant": bool(t.map.constant), "reason": t.map.reason,
+        "measured_texels": int(measured.sum()),
+        "albedo_error": pattern_error(t, tex), "albedo_error_floor": floor,
+        "sphere": {"textured": metrics.sphere_error(region.table, table),
+                   "untextured": metrics.sphere_error(flat.table, table),
+                   "naive": metrics.sphere_error(naive.table, table)},
+        "fits": len(result.rounds), "seconds_textured": seconds,
+    }
+
+
+def pattern_error(t: textured.RegionTexture, tex: np.ndarray) -> float:
+    """The median over measured texels of the relative error of the texture's
+    pattern (estimate and truth each over their mean on those texels)."""
+    measured = t.map.coverage == albedo.MEASURED
+    est = t.relative()[measured]
+    est = est / est.mean(axis=0)
+    true = tex[measured] / tex[measured].mean(axis=0)
+    return float(np.median(np.abs(est - true) / true))
+
+
+def _floor(table, photos, tex, shape) -> float:
+    """The albedo error with the true table as the shared shape: what the scan's
+    normals alone cost (``textured.estimate_texture`` on the same observations)."""
+    raw, _ = pipeline.observe_photos(photos, pipeline.PipelineSettings())
+    texel = textured.sample_texels(raw, [p.uv for p in photos], shape)
+    at = np.flatnonzero((texel >= 0) & (raw.region == 0))
+    t = textured.estimate_texture(table, raw.subset(at), texel[at], shape,
+                                  albedo.AlbedoSettings())
+    return pattern_error(t, tex)
+
+
+def summarise(rows: list) -> dict:
+    return {obj: _summarise([r for r in rows if r["object"] == obj]) for obj in OBJECTS
+            if any(r["object"] == obj for r in rows)}
+
+
+def _summarise(rows: list) -> dict:
+    out = {}
+    for scan in SCANS:
+        part = [r for r in rows if r["scan"] == scan]
+        if not part:
+            continue
+        by = {}
+        for r in part:
+            by.setdefault(r["material"], []).append(r)
+
+        def med(key, sub=None, group=None, by=by):
+            values = [np.median([x[key][sub] if sub else x[key] for x in v])
+                      for v in by.values() if group is None or v[0]["truth"] == group]
+            return float(np.median(values)) if values else None
+
+        ratios = [np.median([x["sphere"]["textured"] / x["sphere"]["untextured"] for x in v])
+                  for v in by.values()]
+        out[scan] = {
+            "materials": len(by),
+            "albedo_error_median": med("albedo_error"),
+            "albedo_error_floor_median": med("albedo_error_floor"),
+            "albedo_error_median_diffuse_truth": med("albedo_error", group="diffuse"),
+            "albedo_error_median_whole_truth": med("albedo_error", group="whole"),
+            "sphere_textured": med("sphere", "textured"),
+            "sphere_untextured": med("sphere", "untextured"),
+            "sphere_naive": med("sphere", "naive"),
+            "ratio_textured_over_untextured_median": float(np.median(ratios)),
+            "within_1_3x": int(sum(r <= 1.3 for r in ratios)),
+            "model_matches_truth": int(sum(v[0]["model"] == v[0]["truth"] for v in by.values())),
+        }
+    return out
+
+
+def plot(rows: list, path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = sorted({r["material"] for r in rows})
+    objects = [o for o in OBJECTS if any(r["object"] == o for r in rows)]
+    fig, axes = plt.subplots(len(objects), 2, figsize=(12, 4.5 * len(objects)), squeeze=False)
+    for i, obj in enumerate(objects):
+        for k, scan in enumerate(SCANS):
+            ax = axes[i, k]
+            for j, key in enumerate(("untextured", "naive", "textured")):
+                values = [np.median([r["sphere"][key] for r in rows if r["material"] == m
+                                     and r["scan"] == scan and r["object"] == obj] or [np.nan])
+                          for m in names]
+                ax.bar(np.arange(len(names)) + 0.27 * (j - 1), values, 0.27, label=key)
+            ax.set_yscale("log")
+            ax.set_title(f"{obj}, {scan} scan: sphere error of the shared shape", fontsize=9)
+            ax.set_xticks(range(len(names)))
+            ax.set_xticklabels([n.replace("heldout_", "") for n in names], rotation=70,
+                               fontsize=7)
+            ax.legend(fontsize=8)
+    common.save_figure(fig, path)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--objects", default="numpy,spot")
+    parser.add_argument("--seeds", type=int, default=1)
+    parser.add_argument("--quick", action="store_true", help="4 materials")
+    args = parser.parse_args(argv)
+    objects = common.listed(args.objects, OBJECTS, "--objects")
+    if objects is None:
+        return 2
+    if args.seeds < 1:
+        print("error: --seeds must be at least 1", file=sys.stderr)
+        return 2
+    if common.measured_pack_or_error() is None:
+        return 1
+    info = common.machine()
+    materials = common.pipeline_materials()
+    if args.quick:
+        materials = ["heldout_glossy_plastic", "heldout_lambert_grey", "heldout_gold_medium",
+                     materials[-1]]
+    rows = []
+    t0 = time.perf_counter()
+    spot = spot_arrays() if "spot" in objects else None
+    for obj, name, scan, seed in [(o, n, sc, sd) for o in objects for n in materials
+                                  for sc in SCANS for sd in range(args.seeds)]:
+        rows.append(one(name, scan, seed, spot if obj == "spot" else None))
+        r = rows[-1]
+        print(f"{obj} {name} {scan} seed {seed}: albedo {r['albedo_error']:.3f} "
+              f"(floor {r['albedo_error_floor']:.3f}) ({r['model']}, truth {r['truth']}), "
+              f"sphere {r['sphere']['textured']:.3f} / {r['sphere']['untextured']:.3f} "
+              f"untextured / {r['sphere']['naive']:.3f} naive, {r['fits']} fits, "
+              f"{r['seconds_textured']:.1f} s", flush=True)
+    stem = "texture_quick" if args.quick else "texture"
+    document = {"machine": common.machine_end(info), "minutes": (time.perf_counter() - t0) / 60,
+                "settings": {"resolution": RES, "texture": list(SHAPE), "noise": 0.01,
+                             "photos": 3, **SETTINGS, "seeds": args.seeds},
+                "summary": summarise(rows), "rows": rows}
+    common.write_json(common.RESULTS / f"{stem}.json", document, arguments=vars(args))
+    plot(rows, common.RESULTS / f"{stem}.png")
+    print(document["summary"])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
