@@ -77,18 +77,8 @@ def scene(scan: str):
 
 
 def inputs(colour, rest, texture, truth, seen, seed: int):
-    uv = synthetic.height_field_uv(seen)
-    region = np.zeros((RES, RES), dtype=np.int64)
-    out = []
-    for i in (0, 1, 2):
-        light = synthetic.LIGHTS[i]
-        photo = synthetic.textured_photo(colour, rest, texture, SHAPE, truth, light,
-                                         noise=0.01, rng=100 * seed + i)
-        out.append(pipeline.PhotoInput(
-            photo=photo, normal=seen.normal, position=seen.position,
-            visibility=np.ones((RES, RES)), region=region, camera_center=seen.camera_center,
-            light=light, name=f"photo{i}", uv=uv))
-    return out
+    return synthetic.textured_inputs(colour, rest, texture, SHAPE, truth, seen,
+                                     rng_base=100 * seed)
 
 
 def spot_arrays() -> dict:

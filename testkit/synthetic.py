@@ -145,6 +145,28 @@ def textured_photo(colour: np.ndarray, rest: np.ndarray, texture: np.ndarray, sh
     return np.clip(image, 0.0, None)
 
 
+def textured_inputs(colour: np.ndarray, rest: np.ndarray, texture: np.ndarray, shape,
+                    truth: GBuffer, scan: GBuffer, *, noise: float = 0.01, rng_base: int = 0,
+                    with_uv: bool = True) -> list:
+    """Three ``pipeline.PhotoInput``s of the textured height field: photos of the
+    truth (:func:`textured_photo`, lights ``LIGHTS[0:3]``, photo i's noise seeded
+    ``rng_base + i``) with the scan's G-buffers and UV map (None if not ``with_uv``)."""
+    from brdf_reconstruct.core.method import pipeline
+
+    uv = height_field_uv(scan) if with_uv else None
+    region = np.zeros(truth.mask.shape, dtype=np.int64)
+    inputs = []
+    for i in (0, 1, 2):
+        light = LIGHTS[i]
+        photo = textured_photo(colour, rest, texture, shape, truth, light, noise=noise,
+                               rng=rng_base + i)
+        inputs.append(pipeline.PhotoInput(
+            photo=photo, normal=scan.normal, position=scan.position,
+            visibility=np.ones(truth.mask.shape), region=region,
+            camera_center=scan.camera_center, light=light, name=f"photo{i}", uv=uv))
+    return inputs
+
+
 LIGHTS = np.array([[0.5, 0.3, 0.81], [-0.6, 0.2, 0.77], [0.1, -0.7, 0.71], [0.0, 0.0, 1.0]])
 
 

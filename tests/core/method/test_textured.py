@@ -24,18 +24,8 @@ def scene_inputs(spec, texture, *, with_uv=True):
     """Three photos of the true height field (1 % noise), its own G-buffers as the scan."""
     truth = synthetic.gbuffer_from_heights(synthetic.height_field(RES))
     colour, rest = synthetic.colour_tables(spec)
-    uv = synthetic.height_field_uv(truth)
-    region = np.zeros((RES, RES), dtype=np.int64)
-    inputs = []
-    for i in (0, 1, 2):
-        light = synthetic.LIGHTS[i]
-        photo = synthetic.textured_photo(colour, rest, texture, SHAPE, truth, light,
-                                         noise=0.01, rng=i)
-        inputs.append(pipeline.PhotoInput(
-            photo=photo, normal=truth.normal, position=truth.position,
-            visibility=np.ones((RES, RES)), region=region, camera_center=truth.camera_center,
-            light=light, name=f"photo{i}", uv=uv if with_uv else None))
-    return inputs
+    return synthetic.textured_inputs(colour, rest, texture, SHAPE, truth, truth,
+                                     with_uv=with_uv)
 
 
 @pytest.fixture(scope="module", params=["heldout_lambert_grey", "heldout_glossy_plastic"])
