@@ -30,6 +30,7 @@ from ..core.capture import photo_io
 from .scratch_scene import ScratchScene, configure_cycles, float_exr_output
 
 GROUP_NAME = "BRDF Reconstruction"
+PRINCIPLED_NAME = "BRDF Principled"
 _DISTRIBUTION = {"ggx": "GGX", "beckmann": "BECKMANN"}  # lobes -> node enum
 
 
@@ -171,19 +172,54 @@ def build_material(name: str, fit, provenance: dict) -> bpy.types.Material:
     return mat
 
 
+def build_principled_material(name: str, fit, provenance: dict) -> bpy.types.Material:
+    """A NEW material ``name`` whose tree is one Principled BSDF (single-scattering
+    GGX) -> Material Output, its inputs :func:`core.bake.principled.from_lobes` of
+    the lobe fit: what Eevee and the glTF exporter read. provenance as in
+    :func:`build_material`; also stored: ``mat["brdf_principled"]`` (its
+    parameters, JSON) and ``mat["brdf_fit"]`` (the lobe fit it came from)."""
+    from ..core.bake import principled
+
+    params = _params(fit)
+    values = principled.from_lobes(params)
+    mat = bpy.data.materials.new(name)
+    if mat.node_tree is None:
+        mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.clear()
+    bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.name = bsdf.label = PRINCIPLED_NAME
+    bsdf.distribution = "GGX"  # single scattering, as the bake's lobes
+    for key, value in values.to_inputs().items():
+        bsdf.inputs[key].default_value = value
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (300, 0)
+    tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    for key, value in provenance.items():
+        mat[f"brdf_{key}"] = (value if isinstance(value, str)
+                              else json.dumps(value, sort_keys=True, default=str))
+    mat["brdf_principled"] = json.dumps(values.to_dict(), sort_keys=True)
+    mat["brdf_fit_source"] = json.dumps(params.to_dict(), sort_keys=True)
+    return mat
+
+
 def add_texture(mat, image, uv_map: str = "", model: str = "diffuse") -> None:
     """Put a textured region's albedo image into a material :func:`build_material`
-    made: an Image Texture on the mesh's UV map (``uv_map``; "" the render map).
-    model "diffuse": the image is the diffuse colour (linked to the group's
-    "Diffuse Color"); "whole": it multiplies every colour input of the group
-    (each input's value times the texel's, by a Vector Math node). ValueError for
-    a material without the group or another model."""
+    or :func:`build_principled_material` made: an Image Texture on the mesh's UV map
+    (``uv_map``; "" the render map). model "diffuse": the image is the diffuse
+    colour (linked to the group's "Diffuse Color", or the Principled BSDF's "Base
+    Color"); "whole": it multiplies every colour input of the group (the base
+    color of the Principled one), each input's value times the texel's, by a
+    Vector Math node. ValueError for a material without either node or another
+    model."""
     if model not in ("diffuse", "whole"):
         raise ValueError(f"texture model must be 'diffuse' or 'whole', got {model!r}")
     tree = mat.node_tree
     group = tree.nodes.get(GROUP_NAME)
-    if group is None or group.type != "GROUP":
-        raise ValueError(f"material {mat.name!r} has no {GROUP_NAME!r} group node")
+    bsdf = tree.nodes.get(PRINCIPLED_NAME)
+    if (group is None or group.type != "GROUP") and bsdf is None:
+        raise ValueError(f"material {mat.name!r} has no {GROUP_NAME!r} group node "
+                         f"and no {PRINCIPLED_NAME!r} node")
     uv = tree.nodes.new("ShaderNodeUVMap")
     uv.uv_map = uv_map
     uv.location = (-700, 0)
@@ -192,10 +228,16 @@ def add_texture(mat, image, uv_map: str = "", model: str = "diffuse") -> None:
     tex.image = image
     tex.location = (-500, 0)
     tree.links.new(uv.outputs["UV"], tex.inputs["Vector"])
-    if model == "diffuse":
+    if group is None:  # the Principled version: the texture is its base color
+        if model == "diffuse":
+            tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+            return
+        colours = [bsdf.inputs["Base Color"]]
+    elif model == "diffuse":
         tree.links.new(tex.outputs["Color"], group.inputs["Diffuse Color"])
         return
-    colours = [sock for sock in group.inputs if sock.type == "RGBA"]
+    else:
+        colours = [sock for sock in group.inputs if sock.type == "RGBA"]
     for k, sock in enumerate(colours):
         times = tree.nodes.new("ShaderNodeVectorMath")
         times.operation = "MULTIPLY"

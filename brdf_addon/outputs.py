@@ -197,22 +197,48 @@ def _write_texture(out: pathlib.Path, r, texture, fit, label: str):
 
 
 def _bake(scene, r, label, table_path, entry, fit, image=None) -> dict:
-    """Build a NEW material from the lobe fit (with ``image`` = (the texture's
-    Blender image, its model), if any), measure its bake error (before the texture
-    goes in: the error is the shared shape's, against the table)."""
+    """Build the NEW material from the lobe fit, as the setting ``material_model``
+    asks: the "BRDF Reconstruction" node group, or its Principled BSDF version
+    (``core.bake.principled``); ``image`` = (the texture's Blender image, its model)
+    goes in if given. The bake error (Cycles against the table, before the texture
+    goes in: the shared shape's) is measured for both versions and reported; the
+    one not chosen is built for that only and removed."""
     from . import material
 
     provenance = {"table_path": str(table_path),
                   "settings": props.settings_dict(scene.brdf),
                   "region": int(r.region), "kl": float(r.kl[r.winner]), "trial": int(r.winner)}
-    mat = material.build_material(f"BRDF {label}", fit, provenance)
-    errors = material.bake_error(mat, r.table, BAKE_LIGHTS)
+    builders = {"NODE_GROUP": material.build_material,
+                "PRINCIPLED": material.build_principled_material}
+    chosen = scene.brdf.material_model
+    errors, mat = {}, None
+    for model, build in builders.items():
+        made = build(f"BRDF {label}" if model == chosen else f"BRDF {label} (measured only)",
+                     fit, provenance)
+        errors[model.lower()] = material.bake_error(made, r.table, BAKE_LIGHTS)
+        if model == chosen:
+            mat = made
+        else:
+            bpy.data.materials.remove(made)
+    out = {"name": mat.name, "model": chosen.lower(), "fit": json.loads(mat["brdf_fit"])
+           if "brdf_fit" in mat else json.loads(mat["brdf_fit_source"]),
+           "bake_error": errors[chosen.lower()], "bake_errors": errors}
+    if "brdf_principled" in mat:
+        out["principled"] = json.loads(mat["brdf_principled"])
     if image is not None:
-        material.add_texture(mat, image[0], scene.brdf.uv_map, image[1])
-    mat["brdf_bake_error"] = json.dumps(errors, default=_json_default)
+        metal = chosen == "PRINCIPLED" and out["principled"]["metallic"] > 0.5
+        if metal and image[1] == "diffuse":  # the file holds a diffuse color a metal has not
+            out["texture_applied"] = False
+            out["texture_note"] = ("the Principled version is a metal, and the texture holds "
+                                   "the diffuse color: not linked")
+        else:
+            material.add_texture(mat, image[0], scene.brdf.uv_map, image[1])
+            out["texture_applied"] = True
+    mat["brdf_bake_error"] = json.dumps(errors[chosen.lower()], default=_json_default)
+    mat["brdf_bake_errors"] = json.dumps(errors, default=_json_default)
     entry.material = mat
-    entry.bake_error = float(errors["max"])
-    return {"name": mat.name, "fit": json.loads(mat["brdf_fit"]), "bake_error": errors}
+    entry.bake_error = float(errors[chosen.lower()]["max"])
+    return out
 
 
 def _json_default(o):

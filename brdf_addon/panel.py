@@ -182,6 +182,7 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
         for name in ("samples", "sampler", "trials", "subset_fraction",
                      "min_reliable_samples", "refine_to_photos"):
             col.prop(s, name)
+        layout.prop(s, "material_model")
         col = layout.column(heading="Texture")
         col.prop(s, "texture")
         sub = col.column()

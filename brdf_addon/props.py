@@ -318,6 +318,15 @@ class BRDFSettings(PropertyGroup):
         name="UV Map", default="",
         description="The scan's UV map the texture lies on (empty: its active render map)")
 
+    material_model: EnumProperty(
+        name="Material", default="NODE_GROUP",
+        description="What the new material is made of (the bake error of both is "
+        "measured and reported)",
+        items=[("NODE_GROUP", "BRDF Node Group", "The \"BRDF Reconstruction\" node group: "
+                "the closures the bake fits, for Cycles"),
+               ("PRINCIPLED", "Principled BSDF", "A Principled BSDF derived from the same "
+                "fit, for Eevee, the glTF exporter and other engines (less exact)")])
+
     # KL selection
     kl_path: EnumProperty(
         name="Selection", default=_BALANCED["kl_path"], update=_preset_value_changed,

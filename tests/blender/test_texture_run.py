@@ -144,3 +144,18 @@ def test_a_textured_run_with_the_cycles_selection(textured):
     assert region["selection"]["path"] == "cycles"
     assert region["texture"]["albedo"] == "brdf_0_albedo.png"
     assert (built["dir"] / "out" / "brdf_0_albedo.png").is_file()
+
+
+def test_the_principled_version_takes_the_texture_as_its_base_color(textured):
+    built, _ = textured
+    built["scene"].brdf.material_model = "PRINCIPLED"
+    materials_before = {m.name for m in bpy.data.materials}
+    report = runner.Run(built["scene"], threaded=False).run()
+    entry = report["regions"][0]["material"]
+    assert entry["model"] == "principled" and entry["texture_applied"]
+    assert set(entry["bake_errors"]) == {"node_group", "principled"}
+    mat = built["scene"].brdf.results[0].material
+    base = mat.node_tree.nodes["BRDF Principled"].inputs["Base Color"]
+    assert base.links[0].from_node.name == "BRDF Albedo"
+    # one new material: the node group's version was built to be measured, then removed
+    assert {m.name for m in bpy.data.materials} - materials_before == {mat.name}

@@ -1,0 +1,122 @@
+"""The Principled BSDF version of a bake (issue 16): what Eevee, the glTF exporter and
+other engines read, since they do not read the "BRDF Reconstruction" node group.
+
+The Principled BSDF cannot take the bake's closures one for one (it has one
+specular lobe, a coat and a sheen, and its Fresnel follows the IOR), so its
+parameters are derived from the lobe fit (``core.bake.lobes.LobeParams``):
+
+- **metal or dielectric**: a metal when the fit has almost no diffuse (its mean
+  below ``METAL_DIFFUSE`` x its main lobe's colour), as conductors do;
+- **base color**: the Lambert albedo (dielectric) or the main lobe's colour, its
+  reflectance at normal incidence (metal), clipped to [0, 1];
+- **roughness**: the main lobe's, ``sqrt(alpha)`` (the lobe of the largest mean
+  colour);
+- **specular** (dielectric): the main lobe's mean colour is the normal-incidence
+  reflectance F0; IOR 1.5 and ``Specular IOR Level = F0 / 0.08`` (0.5 gives the
+  IOR's own 0.04; 1 doubles it); above 0.08 the level 1 and the IOR whose doubled
+  F0 it is; the tint the colour over its mean;
+- **coat**: a second lobe of a dielectric, its weight its mean colour over the
+  coat's F0 at IOR 1.5 (0.04), clipped to 1, its roughness the lobe's;
+- **sheen**: the velvet's colour as weight (its largest channel) and tint, its
+  roughness the velvet's sigma.
+
+It is an approximation by design; its error against the table is measured in
+Cycles like the node group's (``brdf_addon.material.bake_error``), and reported
+beside it. Cycles' Principled BSDF is set to single-scattering GGX, like the bake.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from . import lobes
+
+METAL_DIFFUSE = 0.05  # a fit whose diffuse is below this share of its main lobe is a metal
+_F0_IOR_1_5 = 0.04  # ((1.5 - 1) / (1.5 + 1))^2
+_LEVEL_PER_F0 = 0.5 / _F0_IOR_1_5  # Specular IOR Level 0.5 is the IOR's own F0
+
+
+@dataclasses.dataclass(frozen=True)
+class PrincipledParams:
+    """The Principled BSDF's inputs (Blender 4.0+ names in ``to_inputs``): base_color
+    (3,), metallic, roughness, ior, specular_level, specular_tint (3,), coat_weight,
+    coat_roughness, sheen_weight, sheen_roughness, sheen_tint (3,); all finite, colours
+    and factors in [0, 1]."""
+
+    base_color: tuple
+    metallic: float
+    roughness: float
+    ior: float = 1.5
+    specular_level: float = 0.5
+    specular_tint: tuple = (1.0, 1.0, 1.0)
+    coat_weight: float = 0.0
+    coat_roughness: float = 0.03
+    sheen_weight: float = 0.0
+    sheen_roughness: float = 0.5
+    sheen_tint: tuple = (1.0, 1.0, 1.0)
+
+    def to_inputs(self) -> dict:
+        """{Principled BSDF input name: value} (colours as RGBA)."""
+        def rgba(c):
+            return (*(float(x) for x in c), 1.0)
+
+        return {
+            "Base Color": rgba(self.base_color), "Metallic": float(self.metallic),
+            "Roughness": float(self.roughness), "IOR": float(self.ior),
+            "Specular IOR Level": float(self.specular_level),
+            "Specular Tint": rgba(self.specular_tint),
+            "Coat Weight": float(self.coat_weight), "Coat Roughness": float(self.coat_roughness),
+            "Coat IOR": 1.5, "Sheen Weight": float(self.sheen_weight),
+            "Sheen Roughness": float(self.sheen_roughness), "Sheen Tint": rgba(self.sheen_tint),
+        }
+
+    def to_dict(self) -> dict:
+        return {k: (list(v) if isinstance(v, tuple) else v)
+                for k, v in dataclasses.asdict(self).items()}
+
+
+def _unit(x) -> float:
+    return float(np.clip(np.nan_to_num(x), 0.0, 1.0))
+
+
+def _colour(c) -> tuple:
+    return tuple(float(x) for x in np.clip(np.nan_to_num(np.asarray(c, dtype=np.float64)),
+                                           0.0, 1.0))
+
+
+def from_lobes(params) -> PrincipledParams:
+    """The Principled BSDF's parameters for a lobe fit (see the module docstring).
+    params: :class:`core.bake.lobes.LobeParams` or its dict."""
+    p = params if isinstance(params, lobes.LobeParams) else lobes.LobeParams.from_dict(params)
+    kd = np.asarray(p.diffuse, dtype=np.float64)
+    sheen = {}
+    if np.any(p.sheen > 0.0):
+        peak = float(np.max(p.sheen))
+        sheen = dict(sheen_weight=_unit(peak), sheen_roughness=_unit(p.sheen_sigma),
+                     sheen_tint=_colour(p.sheen / max(peak, 1e-12)))
+    if len(p.alphas) == 0:  # diffuse only: no specular at all
+        return PrincipledParams(base_color=_colour(kd), metallic=0.0, roughness=0.5,
+                                specular_level=0.0, **sheen)
+    strength = p.colors.mean(axis=1)
+    main = int(np.argmax(strength))
+    colour = p.colors[main]
+    roughness = _unit(np.sqrt(p.alphas[main]))
+    f0 = float(max(strength[main], 0.0))
+    if kd.mean() < METAL_DIFFUSE * max(f0, 1e-12):
+        return PrincipledParams(base_color=_colour(colour), metallic=1.0, roughness=roughness,
+                                **sheen)
+    coat = {}
+    if len(p.alphas) > 1:
+        other = 1 - main
+        coat = dict(coat_weight=_unit(strength[other] / _F0_IOR_1_5),
+                    coat_roughness=_unit(np.sqrt(p.alphas[other])))
+    tint = colour / max(f0, 1e-12)
+    ior, level = 1.5, f0 * _LEVEL_PER_F0
+    if level > 1.0:  # Specular IOR Level 1 doubles the IOR's F0: the IOR that gives f0
+        r = min(np.sqrt(f0 / 2.0), 0.95)
+        ior, level = float((1.0 + r) / (1.0 - r)), 1.0
+    return PrincipledParams(base_color=_colour(kd), metallic=0.0, roughness=roughness,
+                            ior=ior, specular_level=_unit(level),
+                            specular_tint=_colour(tint / max(np.max(tint), 1.0)), **coat, **sheen)

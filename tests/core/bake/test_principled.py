@@ -1,0 +1,68 @@
+"""The Principled BSDF version of a lobe fit (core.bake.principled): the mapping's
+cases, each against the value the module docstring gives."""
+
+import numpy as np
+import pytest
+
+from brdf_reconstruct.core.bake import lobes, principled
+
+
+def test_a_diffuse_only_fit_is_a_principled_without_specular():
+    p = principled.from_lobes(lobes.LobeParams.build(diffuse=(0.5, 0.3, 0.1)))
+    assert p.base_color == (0.5, 0.3, 0.1) and p.metallic == 0.0
+    assert p.specular_level == 0.0 and p.coat_weight == 0.0 and p.sheen_weight == 0.0
+
+
+def test_a_dielectric_lobe_of_f0_0_04_is_ior_1_5_at_level_0_5():
+    fit = lobes.LobeParams.build(diffuse=(0.4, 0.4, 0.4),
+                                 lobes=[("ggx", (0.04, 0.04, 0.04), 0.0, 0.09)])
+    p = principled.from_lobes(fit)
+    assert p.metallic == 0.0 and p.ior == 1.5
+    assert p.specular_level == pytest.approx(0.5)
+    assert p.roughness == pytest.approx(0.3) and p.specular_tint == (1.0, 1.0, 1.0)
+
+
+def test_a_bright_dielectric_lobe_raises_the_ior_at_level_1():
+    fit = lobes.LobeParams.build(diffuse=(0.2, 0.2, 0.2),
+                                 lobes=[("ggx", (0.2, 0.2, 0.2), 0.0, 0.01)])
+    p = principled.from_lobes(fit)
+    r = (p.ior - 1.0) / (p.ior + 1.0)
+    assert p.specular_level == 1.0 and 2.0 * r * r == pytest.approx(0.2)
+
+
+def test_a_fit_without_diffuse_is_a_metal_of_its_lobes_color():
+    fit = lobes.LobeParams.build(diffuse=(0.001, 0.001, 0.001),
+                                 lobes=[("ggx", (0.95, 0.7, 0.3), 0.2, 0.02)])
+    p = principled.from_lobes(fit)
+    assert p.metallic == 1.0 and p.base_color == (0.95, 0.7, 0.3)
+    assert p.roughness == pytest.approx(np.sqrt(0.02))
+
+
+def test_a_second_dielectric_lobe_is_the_coat_and_a_velvet_the_sheen():
+    fit = lobes.LobeParams.build(
+        diffuse=(0.3, 0.1, 0.1),
+        lobes=[("ggx", (0.02, 0.02, 0.02), 0.0, 0.0004), ("ggx", (0.05, 0.05, 0.05), 0.0, 0.25)],
+        sheen=(0.4, 0.2, 0.2), sigma=0.6)
+    p = principled.from_lobes(fit)
+    assert p.roughness == pytest.approx(0.5)  # the main (stronger) lobe's
+    assert p.coat_weight == pytest.approx(0.5) and p.coat_roughness == pytest.approx(0.02)
+    assert p.sheen_weight == pytest.approx(0.4) and p.sheen_tint == (1.0, 0.5, 0.5)
+    assert p.sheen_roughness == pytest.approx(0.6)
+
+
+def test_every_value_is_finite_and_in_range_for_random_fits():
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        k = int(rng.integers(0, 3))
+        fit = lobes.LobeParams.build(
+            diffuse=rng.uniform(0, 2, 3) * rng.integers(0, 2),
+            lobes=[("ggx", rng.uniform(0, 3, 3), float(rng.uniform(0, 1)),
+                    float(rng.uniform(1e-4, 1))) for _ in range(k)],
+            sheen=rng.uniform(0, 2, 3) * rng.integers(0, 2), sigma=float(rng.uniform(0.1, 1)))
+        values = principled.from_lobes(fit).to_inputs()
+        for name, value in values.items():
+            v = np.atleast_1d(value)
+            assert np.isfinite(v).all(), name
+            if name not in ("IOR", "Coat IOR"):
+                assert (v >= 0.0).all() and (v <= 1.0).all(), name
+        assert 1.0 <= values["IOR"] <= 40.0
