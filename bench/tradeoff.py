@@ -48,6 +48,7 @@ import dataclasses
 import datetime
 import json
 import multiprocessing
+import os
 import pathlib
 import sys
 import time
@@ -200,6 +201,8 @@ def run_point(point: Point) -> dict:
         "timings_s": timings, "total_s": float(sum(timings.values())),
         "pipeline_s": pipeline_s,
         "peak_rss_mb": _peak_rss_mb(),
+        # other jobs share the machine: its load when this point ended
+        "load_average_1_5_15_at_end": list(os.getloadavg()),
         # getrusage's max RSS survives fork + exec (it starts at the parent's peak): kept
         # for comparison only
         "ru_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
@@ -243,19 +246,45 @@ def _pool():
                                        mp_context=multiprocessing.get_context("spawn"))
 
 
-def _run_all(points, label: str) -> list:
-    rows = []
+def _point_key(point: dict) -> str:
+    return json.dumps(point, sort_keys=True)
+
+
+def _run_all(points, label: str, journal: pathlib.Path | None = None,
+             resume: bool = False) -> list:
+    """Run ``points``, one child process each, in order. Each row is also appended to
+    ``journal`` (JSON lines) as it comes; with ``resume`` the rows already there for
+    these points are reused instead of run again (a part stopped half way goes on
+    where it stopped); without, the journal is started afresh."""
+    done = {}
+    if journal is not None and resume and journal.is_file():
+        for line in journal.read_text().splitlines():
+            try:
+                row = json.loads(line)
+            except json.JSONDecodeError:  # the last line of a killed run
+                continue
+            done[_point_key(row["point"])] = row
+    elif journal is not None:
+        journal.unlink(missing_ok=True)
+    todo = [p for p in points if _point_key(dataclasses.asdict(p)) not in done]
+    if done:
+        print(f"[{label}] {len(points) - len(todo)} of {len(points)} rows from {journal}",
+              flush=True)
     with _pool() as pool:
-        jobs = [pool.submit(run_point, p) for p in points]
-        for i, (p, job) in enumerate(zip(points, jobs, strict=True)):
+        jobs = [pool.submit(run_point, p) for p in todo]
+        for i, (p, job) in enumerate(zip(todo, jobs, strict=True)):
             t0 = time.perf_counter()
             row = job.result()
-            rows.append(row)
-            print(f"[{label} {i + 1}/{len(points)}] {p.material} seed {p.seed} {p.label()}: "
+            row["resumed"] = False
+            done[_point_key(row["point"])] = row
+            if journal is not None:
+                with journal.open("a") as f:
+                    f.write(json.dumps({**row, "resumed": True}) + "\n")
+            print(f"[{label} {i + 1}/{len(todo)}] {p.material} seed {p.seed} {p.label()}: "
                   f"sphere {row['sphere_error']:.3f}, total {row['total_s']:.1f} s, "
                   f"{row['peak_rss_mb']:.0f} MB (waited {time.perf_counter() - t0:.0f} s)",
                   flush=True)
-    return rows
+    return [done[_point_key(dataclasses.asdict(p))] for p in points]
 
 
 def sweep_points(quick: bool) -> tuple[list, dict]:
@@ -445,7 +474,9 @@ def plot_tradeoff(report: dict, path: pathlib.Path) -> None:
     ax.set_xscale("log")
     ax.set_xlabel("wall time per run, s (G-buffers + science + bake; log)")
     ax.set_ylabel("rendered-sphere relative RMSE (median)")
-    ax.set_title("Speed/accuracy on the bunny capture (gold + rough plastic, 2 seeds)")
+    n_measured = sum(common.is_measured(m) for m in MATERIALS)
+    ax.set_title(f"Speed/accuracy on the bunny capture ({len(MATERIALS) - n_measured} "
+                 f"analytic + {n_measured} measured materials, {len(SEEDS)} seeds)")
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -486,6 +517,10 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--part", choices=("all", "sweep", "presets", "ablation", "summary"),
                         default="all")
+    parser.add_argument("--resume", action="store_true",
+                        help="--part sweep/all: reuse the rows a stopped sweep left in "
+                        "bench/results/.tradeoff_sweep.jsonl (each row is written there "
+                        "as it comes) and run only the rest")
     parser.add_argument("--samples", type=int, default=BASE.samples,
                         help=f"samples per trial of the ablation (default {BASE.samples}, "
                         "Balanced's; 6: the paper's mode, written to "
@@ -506,17 +541,34 @@ def main(argv=None) -> int:
     report = json.loads(path.read_text()) if path.is_file() else {}
     if args.part in ("all", "sweep"):
         points, axes = sweep_points(args.quick)
-        rows = _run_all(points, "sweep")
+        journal = RESULTS / f".tradeoff{tag}_sweep.jsonl"
+        rows = _run_all(points, "sweep", journal, resume=args.resume)
         configs = [c for cs in axes.values() for c in cs]
         report.update(meta=_meta(argv, args, info), base=dataclasses.asdict(BASE), rows=rows,
                       summary=summarise(rows, list(dict.fromkeys(configs))),
                       axes={a: [c.label() for c in cs] for a, cs in axes.items()})
         report["pareto"] = pareto(report["summary"])
-    if args.part == "summary":  # recompute the summary and plot from the stored rows
+        report["meta"]["rows_resumed"] = sum(r["resumed"] for r in rows)
+    if args.part == "summary":  # recompute the summaries and plot from the stored rows
         _, axes = sweep_points(args.quick)
         configs = [c for cs in axes.values() for c in cs]
-        report["summary"] = summarise(report["rows"], list(dict.fromkeys(configs)))
-        report["pareto"] = pareto(report["summary"])
+        summary = summarise(report.get("rows", []), list(dict.fromkeys(configs)))
+        if not summary:  # rows of another definition of a point (e.g. without "basis")
+            print(f"{path}: no stored sweep row matches a configuration of the sweep; "
+                  "nothing written", file=sys.stderr)
+            return 1
+        report.update(summary=summary, pareto=pareto(summary),
+                      axes={a: [c.label() for c in cs] for a, cs in axes.items()})
+        if "preset_rows" in report:  # each preset of PRESETS whose rows are stored
+            presets = {}
+            for name, config in preset_points(args.quick).items():
+                found = summarise(report["preset_rows"], [config])
+                if found:
+                    presets[name] = found[0]
+                else:
+                    print(f"preset {name}: no stored row has its settings; run "
+                          "--part presets", file=sys.stderr)
+            report["presets"] = presets
     if args.part in ("all", "presets"):
         configs = preset_points(args.quick)
         points = [dataclasses.replace(c, material=m, seed=s) for c in configs.values()
@@ -547,6 +599,8 @@ def main(argv=None) -> int:
         common.write_json(path, report, arguments=args)
         plot_tradeoff(report, RESULTS / f"tradeoff{tag}.png")
         print(f"wrote {path}")
+        if args.part in ("all", "sweep"):  # its rows are in the report now
+            (RESULTS / f".tradeoff{tag}_sweep.jsonl").unlink(missing_ok=True)
     print(f"done in {time.perf_counter() - t0:.0f} s")
     return 0
 
