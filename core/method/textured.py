@@ -360,11 +360,18 @@ def run(
         t0 = time.perf_counter()
         for r in _regions(raw, regions):
             check(cancelled)
+            if progress:
+                progress(0.0, f"region {r}: a first albedo per texel")
             at = np.flatnonzero(raw.region == r)
-            if np.any(texel[at] >= 0):
+            if not np.any(texel[at] >= 0):
+                continue
+            try:
                 textures[r], tables[r] = initial_albedo(
                     basis, raw.subset(at), texel[at], shape, texture.albedo, prior=prior,
                     iterations=texture.initial_iterations)
+            except ValueError:  # nothing constrains a color here: the photos as they are
+                textures.pop(r, None)
+                tables.pop(r, None)
         current = normalised_inputs(inputs, uvs, textures, tables, shape)
         timings["initial_albedo"] = time.perf_counter() - t0
         textures = {}  # the first texture only made the first fit's photos

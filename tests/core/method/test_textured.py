@@ -4,6 +4,7 @@ BRDF shape and an albedo per texel, against the truth the photos were made from
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 
 import numpy as np
@@ -161,3 +162,21 @@ def test_a_region_whose_observations_constrain_no_color_keeps_the_tables(heldout
                                   albedo.AlbedoSettings())
     assert t.map.constant and t.map.reason.startswith("One constant color: no observation")
     assert (t.relative() == 1.0).all() and (t.map.coverage == albedo.FILLED).all()
+
+
+
+def test_a_region_the_first_albedo_cannot_fit_starts_from_its_photos(default_basis,
+                                                                     monkeypatch):
+    """When nothing constrains a first albedo (``initial_albedo`` refuses), the first
+    fit sees the photos as they are: the run goes on, as with no first albedo."""
+    inputs = scene_inputs(SPECS["heldout_lambert_grey"], synthetic.patch_texture(SHAPE))
+
+    def refuse(*args, **kwargs):
+        raise ValueError("no observation constrains this region's albedo")
+
+    monkeypatch.setattr(textured, "initial_albedo", refuse)
+    quick = textured.TextureSettings(shape=SHAPE, rounds=1)
+    result = textured.run(default_basis, inputs, SETTINGS, quick)
+    plain = textured.run(default_basis, inputs, SETTINGS, dataclasses.replace(
+        quick, initial_iterations=0))
+    np.testing.assert_array_equal(result.result.regions[0].table, plain.result.regions[0].table)
