@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 
 import bpy
@@ -130,9 +131,14 @@ class ScratchScene:
         return self
 
     def render(self, filename) -> str:
-        """Render the scene's camera to ``filename`` in :attr:`folder` (an absolute
-        path is kept as it is); returns the path written."""
-        path = os.path.join(self.folder, os.fspath(filename))
+        """Render the scene's camera to ``filename``: a bare name goes in
+        :attr:`folder`; a path with a folder (absolute, or relative to the working
+        folder) is kept where it points. Returns the absolute path written."""
+        filename = os.fspath(filename)
+        if os.path.dirname(filename):
+            path = os.path.abspath(filename)
+        else:
+            path = os.path.join(self.folder, filename)
         self.scene.render.filepath = path
         with bpy.context.temp_override(scene=self.scene):
             bpy.ops.render.render(write_still=True, scene=self.scene.name)
@@ -147,8 +153,6 @@ class ScratchScene:
             for image in set(bpy.data.images) - self._images_before:
                 bpy.data.images.remove(image)
         if self.folder is not None:
-            for entry in os.listdir(self.folder):
-                os.remove(os.path.join(self.folder, entry))
-            os.rmdir(self.folder)
+            shutil.rmtree(self.folder, ignore_errors=True)  # our own folder, all of it
             self.folder = None
         return False

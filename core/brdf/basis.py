@@ -413,11 +413,12 @@ def _decompose(cols: _Columns, n_components, fingerprint, stage, workers, t0) ->
 
 # ------------------------------------------------------------------------------- cache
 def default_cache_dir() -> pathlib.Path:
-    """``$BRDF_RECONSTRUCT_CACHE`` or ``~/.cache/brdf_reconstruct``. Blender passes its
-    extension user directory instead."""
+    """``$BRDF_RECONSTRUCT_CACHE`` (a relative path is taken from the working folder
+    now, made absolute) or ``~/.cache/brdf_reconstruct``. Blender passes its extension
+    user directory instead."""
     env = os.environ.get("BRDF_RECONSTRUCT_CACHE")
     if env:
-        return pathlib.Path(env)
+        return pathlib.Path(os.path.abspath(os.path.expanduser(env)))
     return pathlib.Path(os.path.expanduser("~")) / ".cache" / "brdf_reconstruct"
 
 

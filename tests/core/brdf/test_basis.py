@@ -244,3 +244,13 @@ def test_a_basis_lists_the_materials_it_was_built_from():
         basis.build(iter(tables), n_components=2, names=["a", "b", "c"])
     with pytest.raises(ValueError, match="1 names for 2 training tables"):
         basis.build_from([lambda t=t: t for t in tables], n_components=2, names=["a"])
+
+
+def test_a_relative_cache_folder_is_taken_from_the_working_folder(tmp_path, monkeypatch):
+    """A pipeline run with ``BRDF_RECONSTRUCT_CACHE=.cache`` must not resolve the
+    folder later against whatever folder Blender renders in."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("BRDF_RECONSTRUCT_CACHE", "rel/cache")
+    folder = basis.default_cache_dir()
+    assert folder.is_absolute()
+    assert folder == tmp_path / "rel" / "cache"
