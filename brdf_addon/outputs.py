@@ -86,7 +86,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
     labels = gathering.region_labels(settings.target, settings.region_mode)
     settings.results.clear()
     settings.capture_notes = json.dumps(gathering.capture_notes(capture or {}))
-    regions = []
+    regions, for_gltf = [], []
     for r in result.regions:
         label = labels.get(r.region, f"region {r.region}")
         entry = settings.results.add()
@@ -129,7 +129,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
             texture = None if textured is None else textured.textures.get(r.region)
             fit = (fits or {}).get(r.region)
             fit = fit[1] if fit is not None and fit[0] == r.winner else None
-            if bake or texture is not None:
+            if bake or texture is not None or settings.export_gltf:
                 from ..core.bake import fitting
 
                 fit = fit if fit is not None else fitting.fit(r.table)
@@ -137,11 +137,13 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
             if texture is not None:
                 summary["texture"], image = _write_texture(out, r, texture, fit, label)
                 image = (image, texture.model)
+            for_gltf.append((r, label, fit, texture, image, summary))
             if bake:
                 t0 = time.perf_counter()
                 summary["material"] = _bake(scene, r, label, table_path, entry, fit, image)
                 timings[f"bake_region_{r.region}"] = time.perf_counter() - t0
         regions.append(summary)
+    gltf = _export_gltf(scene, out, for_gltf) if settings.export_gltf and for_gltf else None
     report = {
         "settings": props.settings_dict(settings),
         "scan": settings.target.name,
@@ -150,6 +152,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
         "basis": basis or {},
         "regions": regions,
         "timings_s": timings | {f"pipeline_{k}": v for k, v in result.timings.items()},
+        "gltf": gltf,
         "cycles": {
             # the fewest each comparison needs, as measured (see docs/results.md)
             "gbuffers": {"samples": 1, "bounces": 0, "pixel_filter_px": 0.01,
@@ -205,9 +208,7 @@ def _bake(scene, r, label, table_path, entry, fit, image=None) -> dict:
     one not chosen is built for that only and removed."""
     from . import material
 
-    provenance = {"table_path": str(table_path),
-                  "settings": props.settings_dict(scene.brdf),
-                  "region": int(r.region), "kl": float(r.kl[r.winner]), "trial": int(r.winner)}
+    provenance = _provenance(scene, r, table_path)
     builders = {"NODE_GROUP": material.build_material,
                 "PRINCIPLED": material.build_principled_material}
     chosen = scene.brdf.material_model
@@ -239,6 +240,41 @@ def _bake(scene, r, label, table_path, entry, fit, image=None) -> dict:
     entry.material = mat
     entry.bake_error = float(errors[chosen.lower()]["max"])
     return out
+
+
+def _provenance(scene, r, table_path) -> dict:
+    """What a new material records of the run that made it."""
+    return {"table_path": str(table_path), "settings": props.settings_dict(scene.brdf),
+            "region": int(r.region), "kl": float(r.kl[r.winner]), "trial": int(r.winner)}
+
+
+def _export_gltf(scene, out: pathlib.Path, regions) -> dict:
+    """``brdf_scan.glb`` (``gltf_export``): the scan wearing each reconstructed
+    region's Principled BSDF version (whichever version its new material is), built
+    for the export and removed after it. regions: (result, label, fit, texture,
+    (albedo image, model) or None, the region's report entry) per region written.
+    Returns the report's "gltf" entry; each region's entry gets its "gltf" part."""
+    from . import gltf_export
+
+    made, images, materials = [], [], {}
+    try:
+        for r, label, fit, texture, image, summary in regions:
+            mat, extra, entry = gltf_export.region_material(
+                f"BRDF {label} (glTF)", fit, _provenance(scene, r, out / summary["table"]),
+                out, r.region, texture, None if image is None else image[0],
+                scene.brdf.uv_map)
+            made.append(mat)
+            images += extra
+            materials[r.region] = mat
+            summary["gltf"] = entry
+            if "base_color_file" in entry:
+                summary.setdefault("pictures", []).append(entry["base_color_file"])
+        return gltf_export.export_scan(scene, out / gltf_export.GLTF_NAME, materials)
+    finally:
+        for mat in made:
+            bpy.data.materials.remove(mat)
+        for image in images:
+            bpy.data.images.remove(image)
 
 
 def _json_default(o):

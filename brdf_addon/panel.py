@@ -183,6 +183,7 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
                      "min_reliable_samples", "refine_to_photos"):
             col.prop(s, name)
         layout.prop(s, "material_model")
+        layout.prop(s, "export_gltf")
         col = layout.column(heading="Texture")
         col.prop(s, "texture")
         sub = col.column()

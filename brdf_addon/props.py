@@ -327,6 +327,12 @@ class BRDFSettings(PropertyGroup):
                ("PRINCIPLED", "Principled BSDF", "A Principled BSDF derived from the same "
                 "fit, for Eevee, the glTF exporter and other engines (less exact)")])
 
+    export_gltf: BoolProperty(
+        name="Export glTF", default=False,
+        description="Also write brdf_scan.glb to the output folder: a copy of the scan "
+        "wearing each region's Principled BSDF version (with its texture), through "
+        "Blender's glTF exporter, for other engines and tools")
+
     # KL selection
     kl_path: EnumProperty(
         name="Selection", default=_BALANCED["kl_path"], update=_preset_value_changed,

@@ -18,7 +18,8 @@ import pathlib
 OUTPUT_MARKER = ".brdf_reconstruct_output"
 """Left in an output folder by every run: the files of :data:`OUTPUT_NAMES` beside
 it were written by a run, and the next run may replace them."""
-OUTPUT_NAMES = ("brdf_*.binary", "brdf_*.png", "brdf_*.exr", "report.json", "scene.blend")
+OUTPUT_NAMES = ("brdf_*.binary", "brdf_*.png", "brdf_*.exr", "brdf_*.glb", "report.json",
+                "scene.blend")
 """The names a run writes in its output folder (shell patterns)."""
 
 

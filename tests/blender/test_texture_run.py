@@ -159,3 +159,103 @@ def test_the_principled_version_takes_the_texture_as_its_base_color(textured):
     assert base.links[0].from_node.name == "BRDF Albedo"
     # one new material: the node group's version was built to be measured, then removed
     assert {m.name for m in bpy.data.materials} - materials_before == {mat.name}
+
+
+def _read_glb(path) -> tuple[dict, bytes]:
+    """(the JSON chunk, the BIN chunk) of a glTF 2.0 binary (Khronos' layout: a
+    12-byte header 'glTF', version 2, length; then chunks of length, type, data)."""
+    import struct
+
+    data = path.read_bytes()
+    magic, version, length = struct.unpack_from("<4sII", data, 0)
+    assert (magic, version, length) == (b"glTF", 2, len(data))
+    chunks, at = {}, 12
+    while at < len(data):
+        size, kind = struct.unpack_from("<I4s", data, at)
+        chunks[kind] = data[at + 8:at + 8 + size]
+        at += 8 + size
+    return json.loads(chunks[b"JSON"]), chunks.get(b"BIN\x00", b"")
+
+
+def _png_pixels(data: bytes, tmp_path) -> np.ndarray:
+    import OpenImageIO as oiio
+
+    path = tmp_path / "embedded.png"
+    path.write_bytes(data)
+    file = oiio.ImageInput.open(str(path))
+    pixels = np.asarray(file.read_image(format=oiio.FLOAT))[..., :3]
+    file.close()
+    return pixels
+
+
+def test_the_gltf_export_carries_the_principled_version_and_its_texture(textured, tmp_path):
+    """Export glTF: the scan as a .glb wearing the region's Principled version, read
+    back two ways: its JSON (factors, texture, UVs, placement) and Blender's own
+    importer (the round trip); the user's mesh, UVs and material are unchanged and
+    nothing made for the export is left in the file or the output folder."""
+    built, image = textured
+    scan = built["scan"]
+    s = built["scene"].brdf
+    s.export_gltf = True
+    user_image = _pixels(image)
+    uvs = [tuple(loop.uv) for loop in scan.data.uv_layers[0].data]
+    verts = [tuple(v.co) for v in scan.data.vertices]
+    blocks = {k: len(getattr(bpy.data, k)) for k in ("meshes", "objects", "scenes")}
+    materials_before = {m.name for m in bpy.data.materials}
+    report = runner.Run(built["scene"], threaded=False).run()
+    out = built["dir"] / "out"
+    region = report["regions"][0]
+    assert report["gltf"]["file"] == "brdf_scan.glb"
+    assert not [p.name for p in out.iterdir() if ".tmp" in p.name]
+    values = region["gltf"]["principled"]
+    assert values["metallic"] == 0.0  # the checker is a Lambert
+    assert region["gltf"]["texture"] == region["texture"]["albedo"]
+
+    doc, _ = _read_glb(out / "brdf_scan.glb")
+    (mat,) = doc["materials"]
+    assert mat["name"] == region["gltf"]["material"]
+    pbr = mat["pbrMetallicRoughness"]
+    assert pbr.get("metallicFactor", 1.0) == pytest.approx(values["metallic"], abs=1e-6)
+    assert pbr.get("roughnessFactor", 1.0) == pytest.approx(values["roughness"], abs=1e-6)
+    assert pbr.get("baseColorFactor", [1, 1, 1, 1]) == pytest.approx([1, 1, 1, 1])
+    texture = doc["textures"][pbr["baseColorTexture"]["index"]]
+    picture = doc["images"][texture["source"]]
+    assert picture["mimeType"] == "image/png"
+    (mesh,) = doc["meshes"]
+    (prim,) = mesh["primitives"]
+    assert {"POSITION", "NORMAL", "TEXCOORD_0"} <= set(prim["attributes"])
+    assert pbr["baseColorTexture"].get("texCoord", 0) == 0
+    # placement: glTF is Y-up, Blender Z-up: (x, y, z) -> (x, z, -y)
+    corners = np.array([scan.matrix_world @ v.co for v in scan.data.vertices])
+    position = doc["accessors"][prim["attributes"]["POSITION"]]
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    assert position["min"] == pytest.approx([lo[0], lo[2], -hi[1]], abs=1e-5)
+    assert position["max"] == pytest.approx([hi[0], hi[2], -lo[1]], abs=1e-5)
+
+    # nothing made for the export is left: its materials, mesh, object and scene
+    made = {m.name for m in bpy.data.materials} - materials_before
+    assert made == {built["scene"].brdf.results[0].material.name}
+    assert {k: len(getattr(bpy.data, k)) for k in blocks} == blocks
+
+    # Blender's importer reads the same material back, its texture the albedo file's
+    own = {o.name for o in bpy.data.objects}
+    bpy.ops.import_scene.gltf(filepath=str(out / "brdf_scan.glb"))
+    (back,) = [o for o in bpy.data.objects if o.name not in own]
+    bsdf = next(n for n in back.material_slots[0].material.node_tree.nodes
+                if n.type == "BSDF_PRINCIPLED")
+    assert bsdf.inputs["Roughness"].default_value == pytest.approx(values["roughness"],
+                                                                   abs=1e-6)
+    link = bsdf.inputs["Base Color"].links[0]
+    assert link.from_node.type == "TEX_IMAGE"
+    embedded = np.empty(len(link.from_node.image.pixels), dtype=np.float32)
+    link.from_node.image.pixels.foreach_get(embedded)
+    written = photo_io.read_photo_file(out / region["texture"]["albedo"]).radiance
+    h, w = written.shape[:2]
+    embedded = embedded.reshape(h, w, 4)[::-1, :, :3]  # Blender stores rows bottom-up
+    assert np.abs(embedded - written).max() < 2.0 / 255.0  # 8 or 16 bits, linear after sRGB
+
+    # nothing of the user's changed
+    assert _pixels(image) == user_image
+    assert [tuple(loop.uv) for loop in scan.data.uv_layers[0].data] == uvs
+    assert [tuple(v.co) for v in scan.data.vertices] == verts
+    assert scan.material_slots[0].material.name == "Known Lambert"

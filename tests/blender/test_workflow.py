@@ -330,3 +330,36 @@ def test_face_sets_are_regions(tiny):
     report = runner.Run(tiny["scene"], threaded=False, bake=False).run()
     assert [(r["region"], r["label"], r["status"]) for r in report["regions"]] == [
         (4, "face set 4", "ok"), (9, "face set 9", "ok")]
+
+
+def test_the_gltf_export_gives_each_face_set_its_region_material(tiny):
+    """Two regions (face sets on either side of x = 0): the .glb holds one
+    primitive per region, each wearing its region's Principled version, and the
+    primitive of the x < 0 set lies at x < 0 (Y-up glTF keeps x)."""
+    _add_photo(tiny)
+    mesh = tiny["scan"].data
+    centres = np.zeros(len(mesh.polygons) * 3)
+    mesh.polygons.foreach_get("center", centres)
+    ids = np.where(centres.reshape(-1, 3)[:, 0] < 0, 4, 9).astype(np.int32)
+    mesh.attributes.new(".sculpt_face_set", "INT", "FACE").data.foreach_set("value", ids)
+    s = tiny["scene"].brdf
+    s.region_mode, s.export_gltf = "FACE_SET", True
+    report = runner.Run(tiny["scene"], threaded=False, bake=False).run()
+    names = {r["region"]: r["gltf"]["material"] for r in report["regions"]}
+    assert report["gltf"]["faces"] == {names[4]: int((ids == 4).sum()),
+                                       names[9]: int((ids == 9).sum())}
+    import struct
+
+    data = (tiny["dir"] / "out" / "brdf_scan.glb").read_bytes()
+    size = struct.unpack_from("<I", data, 12)[0]
+    doc = json.loads(data[20:20 + size])
+    (gl_mesh,) = doc["meshes"]
+    by_name = {doc["materials"][p["material"]]["name"]: p for p in gl_mesh["primitives"]}
+    assert set(by_name) == set(names.values())
+    west = doc["accessors"][by_name[names[4]]["attributes"]["POSITION"]]
+    east = doc["accessors"][by_name[names[9]]["attributes"]["POSITION"]]
+    # a face whose centre is at x < 0 reaches at most one edge (0.08 here) past 0
+    assert west["max"][0] <= 0.1 and east["min"][0] >= -0.1
+    assert west["min"][0] < -0.9 and east["max"][0] > 0.9
+    assert mesh.attributes.get(".sculpt_face_set") is not None  # the user's face sets kept
+    assert [m.name for m in mesh.materials] == ["Known Lambert"]
