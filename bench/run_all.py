@@ -20,7 +20,7 @@ HERE = Path(__file__).resolve().parent
 # each in its own process: they set their own thread pinning and Blender scenes
 SCRIPTS = ("core_bench.py", "basis_build_bench.py", "measured_bench.py", "fig4_bench.py",
            "sampler_bench.py", "photo_bench.py", "refit_bench.py", "texture_bench.py",
-           "principled_bench.py",
+           "texture_figure.py", "principled_bench.py",
            "reliable_bench.py",
            "cycles_kl_bench.py", "kl_agreement_bench.py", "tradeoff.py", "extremes_bench.py",
            "bad_inputs.py",
@@ -28,7 +28,7 @@ SCRIPTS = ("core_bench.py", "basis_build_bench.py", "measured_bench.py", "fig4_b
            "camera_inputs_bench.py")
 # no reduced version
 NO_QUICK = ("cycles_kl_bench.py", "sfm.py", "camera_inputs_bench.py", "basis_build_bench.py",
-            "fig4_bench.py")
+            "fig4_bench.py", "texture_figure.py")
 # arguments a script always gets (sfm.py prints only unless told where to write)
 ALWAYS = {"sfm.py": ["--out", str(HERE / "results" / "sfm.json")]}
 # arguments of the full run only (the ones its committed result file was made with)

@@ -319,13 +319,20 @@ def test_an_unsaved_blend_refuses_a_relative_output_folder(tiny, tmp_path, monke
     assert outputs.output_path(tiny["scene"]) == tiny["dir"] / "out"
 
 
-def test_face_sets_are_regions(tiny):
+def _two_face_sets(tiny) -> np.ndarray:
+    """The tiny scene with its photo and two face sets, 4 at x < 0 and 9 at x >= 0
+    (by face centre); returns (F,) the ids."""
     _add_photo(tiny)
     mesh = tiny["scan"].data
     centres = np.zeros(len(mesh.polygons) * 3)
     mesh.polygons.foreach_get("center", centres)
     ids = np.where(centres.reshape(-1, 3)[:, 0] < 0, 4, 9).astype(np.int32)
     mesh.attributes.new(".sculpt_face_set", "INT", "FACE").data.foreach_set("value", ids)
+    return ids
+
+
+def test_face_sets_are_regions(tiny):
+    _two_face_sets(tiny)
     tiny["scene"].brdf.region_mode = "FACE_SET"
     report = runner.Run(tiny["scene"], threaded=False, bake=False).run()
     assert [(r["region"], r["label"], r["status"]) for r in report["regions"]] == [
@@ -336,12 +343,8 @@ def test_the_gltf_export_gives_each_face_set_its_region_material(tiny):
     """Two regions (face sets on either side of x = 0): the .glb holds one
     primitive per region, each wearing its region's Principled version, and the
     primitive of the x < 0 set lies at x < 0 (Y-up glTF keeps x)."""
-    _add_photo(tiny)
+    ids = _two_face_sets(tiny)
     mesh = tiny["scan"].data
-    centres = np.zeros(len(mesh.polygons) * 3)
-    mesh.polygons.foreach_get("center", centres)
-    ids = np.where(centres.reshape(-1, 3)[:, 0] < 0, 4, 9).astype(np.int32)
-    mesh.attributes.new(".sculpt_face_set", "INT", "FACE").data.foreach_set("value", ids)
     s = tiny["scene"].brdf
     s.region_mode, s.export_gltf = "FACE_SET", True
     report = runner.Run(tiny["scene"], threaded=False, bake=False).run()
