@@ -160,7 +160,8 @@ def check_uv_map(obj, uv_map: str = "") -> None:
     layers = obj.data.uv_layers
     if not len(layers):
         raise ValueError(f"the scan {obj.name!r} has no UV map, so its texture cannot be "
-                         "reconstructed (add a UV map, or reconstruct it untextured)")
+                         "reconstructed (add one, use Make UV Map on a Copy or a job's "
+                         "uv_on_copy = true, or reconstruct it untextured)")
     if uv_map and uv_map not in layers:
         raise ValueError(f"the scan {obj.name!r} has no UV map named {uv_map!r} "
                          f"(it has {', '.join(repr(layer.name) for layer in layers)})")

@@ -18,7 +18,7 @@ import pathlib
 import tomllib
 
 KNOWN_TOP = {"blend", "mesh", "mesh_up", "object", "colmap", "up", "out", "overwrite",
-             "basis", "settings", "photo"}
+             "uv_on_copy", "basis", "settings", "photo"}
 KNOWN_PHOTO = {"image", "camera", "light", "irradiance", "mask", "sun", "probe", "color_space",
                "exposure", "grey_card", "reference_region", "silhouette_margin"}
 KNOWN_SUN = {"date", "utc_offset", "latitude", "longitude", "north_offset"}
@@ -54,6 +54,7 @@ class Job:
     mesh_up: str = "Z"
     up: list | str | None = None
     overwrite: bool = False
+    uv_on_copy: bool = False  # a scan without a UV map: make one on a copy, run on the copy
     basis: tuple[str, pathlib.Path | None] | None = None  # (kind, folder); None: preferences
     settings: dict = dataclasses.field(default_factory=dict)
     photos: list = dataclasses.field(default_factory=list)
@@ -89,10 +90,11 @@ def load(path) -> Job:
                 raise JobError(f"out {job.out} is a file or lies below the file {folder}: "
                                "choose a folder")
             break
-    if "overwrite" in data:
-        if not isinstance(data["overwrite"], bool):
-            raise JobError(f"overwrite must be true or false, got {data['overwrite']!r}")
-        job.overwrite = data["overwrite"]
+    for key in ("overwrite", "uv_on_copy"):
+        if key in data:
+            if not isinstance(data[key], bool):
+                raise JobError(f"{key} must be true or false, got {data[key]!r}")
+            setattr(job, key, data[key])
     if "basis" in data:
         job.basis = _basis(base, data["basis"])
     if "blend" in data:
@@ -343,6 +345,14 @@ def apply(job: Job, scene) -> None:
         target = scene.objects.get(job.object)
         if target is None or target.type != "MESH":
             raise JobError(f"no mesh object named {job.object} in the scene")
+    if job.uv_on_copy and not len(target.data.uv_layers):
+        from . import uv_copy
+
+        try:
+            target = uv_copy.make_uv_copy(scene, target)
+        except ValueError as error:
+            raise JobError(str(error)) from None
+        settings.uv_map = uv_copy.UV_NAME
     settings.target = target
     if job.colmap is not None:
         colmap_import.import_cameras(scene, str(job.colmap))

@@ -190,6 +190,10 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
         sub.active = s.texture
         sub.prop(s, "texture_size")
         sub.prop(s, "uv_map")
+        if s.texture and s.target is not None and s.target.type == "MESH" and not len(
+                s.target.data.uv_layers):
+            sub.label(text="The scan has no UV map", icon="ERROR")
+            sub.operator("brdf.uv_copy")
         col = layout.column(heading="Selection")
         col.prop(s, "kl_path")
         col.prop(s, "kl_bins")
