@@ -174,14 +174,20 @@ def photo_inputs(arrays: dict, table: np.ndarray, *, irradiance=1.0, noise: floa
 
 def textured_photo_inputs(arrays: dict, colour: np.ndarray, rest: np.ndarray,
                           texture: np.ndarray, shape, *, irradiance=1.0, noise: float = 0.0,
-                          seed: int = 0) -> list:
+                          seed: int = 0, texel_uv: str = "truth") -> list:
     """Photos of a textured material on the ground truth's geometry, with the scan's
     G-buffers and UV map (``gbuffers(uv=True)``).
 
     The photo is ``rest`` shaded plus, per pixel, the texel's relative albedo
-    (``texture``: (height * width, 3) on the truth's UV map, ``shape`` = (height,
-    width)) times ``colour`` shaded (the part of the table the texture scales;
-    ``testkit.synthetic.colour_tables``). Otherwise as :func:`photo_inputs`."""
+    (``texture``: (height * width, 3), ``shape`` = (height, width)) times ``colour``
+    shaded (the part of the table the texture scales;
+    ``testkit.synthetic.colour_tables``). texel_uv: which UV map gives a pixel its
+    texel: "truth" (the texture lies on the true surface; the scan's UVs,
+    interpolated through the decimation, misregister it) or "scan" (the texture is
+    the scan's own, as photogrammetry bakes the photos onto the scan: a pixel's
+    texel is the scan's UV at that pixel). Otherwise as :func:`photo_inputs`."""
+    if texel_uv not in ("truth", "scan"):
+        raise ValueError(f"texel_uv must be 'truth' or 'scan', got {texel_uv!r}")
     import dataclasses
 
     from brdf_reconstruct.core.method import albedo
@@ -191,7 +197,7 @@ def textured_photo_inputs(arrays: dict, colour: np.ndarray, rest: np.ndarray,
     rng = np.random.default_rng(seed)
     out = []
     for i, (b, c) in enumerate(zip(base, coloured, strict=True)):
-        uv = np.asarray(arrays["truth_uv"][i], dtype=np.float64)
+        uv = np.asarray(arrays[f"{texel_uv}_uv"][i], dtype=np.float64)
         texel = albedo.texel_index(uv.reshape(-1, 2), shape).reshape(uv.shape[:2])
         scale = np.where((texel >= 0)[..., None], texture[np.maximum(texel, 0)], 1.0)
         photo = b.photo + scale * c.photo

@@ -7,7 +7,9 @@ Two objects. **Spot** (``--objects spot``): the capture of ``bench/photo_bench.p
 (``capture_arrays``: three lit views of 240 x 180, photos shaded on the truth's
 Cycles G-buffers, the degraded "photogrammetry" mesh as the scan, or the truth's
 own G-buffers, "exact"), with Spot's own UV map (which the degraded mesh keeps)
-and a 64 x 64 texture of 8-texel patches. **The numpy scene** (``numpy``): the
+and a 64 x 64 texture of 8-texel patches (``--registration``: on the truth's UV map,
+which the degraded scan's interpolated UVs misregister, or on the scan's, as a
+photogrammetry texture is baked onto the scan). **The numpy scene** (``numpy``): the
 tests' height field (``testkit.synthetic``, 96 x 96 pixels, an
 orthographic camera, three distant lights, 1 % photo noise), its UV map the plane's
 (x, y), and a 24 x 24 texture of 4-texel patches times a 1-texel checker
@@ -94,7 +96,8 @@ def spot_arrays() -> dict:
     return {"exact": exact, "blunted": degraded}
 
 
-def one(name: str, scan: str, seed: int, spot: dict | None = None) -> dict:
+def one(name: str, scan: str, seed: int, spot: dict | None = None,
+        registration: str = "truth") -> dict:
     basis = common.default_basis_without(name)
     table = common.heldout_table(name)
     colour, rest, kind = truth_parts(name)
@@ -110,7 +113,8 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None) -> dict:
 
         def make(texture):
             return capture_arrays.textured_photo_inputs(spot[scan], colour, rest, texture,
-                                                        shape, noise=0.01, seed=seed)
+                                                        shape, noise=0.01, seed=seed,
+                                                        texel_uv=registration)
     settings = pipeline.PipelineSettings(seed=seed, **SETTINGS)
     flat = pipeline.run(basis, make(np.ones_like(tex)), settings).regions[0]
     photos = make(tex)
@@ -124,6 +128,7 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None) -> dict:
     floor = _floor(table, photos, tex, shape)
     return {
         "object": "numpy" if spot is None else "spot", "material": name, "scan": scan,
+        "registration": registration if spot is not None else "truth",
         "seed": seed, "truth": kind, "model": t.model,
         "constant": bool(t.map.constant), "reason": t.map.reason,
         "measured_texels": int(measured.sum()),
@@ -225,6 +230,10 @@ def main(argv=None) -> int:
     parser.add_argument("--objects", default="numpy,spot")
     parser.add_argument("--seeds", type=int, default=1)
     parser.add_argument("--quick", action="store_true", help="4 materials")
+    parser.add_argument("--registration", choices=("truth", "scan"), default="truth",
+                        help="Spot's texture on the truth's UV map (default; the degraded "
+                        "scan's UVs misregister it) or on the scan's, as a photogrammetry "
+                        "texture is baked (writes texture_scan_registered.*)")
     args = parser.parse_args(argv)
     objects = common.listed(args.objects, OBJECTS, "--objects")
     if objects is None:
@@ -244,7 +253,8 @@ def main(argv=None) -> int:
     spot = spot_arrays() if "spot" in objects else None
     for obj, name, scan, seed in [(o, n, sc, sd) for o in objects for n in materials
                                   for sc in SCANS for sd in range(args.seeds)]:
-        rows.append(one(name, scan, seed, spot if obj == "spot" else None))
+        rows.append(one(name, scan, seed, spot if obj == "spot" else None,
+                        args.registration))
         r = rows[-1]
         print(f"{obj} {name} {scan} seed {seed}: albedo {r['albedo_error']:.3f} "
               f"(floor {r['albedo_error_floor']:.3f}) ({r['model']}, truth {r['truth']}), "
@@ -252,6 +262,8 @@ def main(argv=None) -> int:
               f"untextured / {r['sphere']['naive']:.3f} naive, {r['fits']} fits, "
               f"{r['seconds_textured']:.1f} s", flush=True)
     stem = "texture_quick" if args.quick else "texture"
+    if args.registration == "scan":
+        stem += "_scan_registered"
     document = {"machine": common.machine_end(info), "minutes": (time.perf_counter() - t0) / 60,
                 "settings": {"resolution": RES, "texture": list(SHAPE), "noise": 0.01,
                              "photos": 3, **SETTINGS, "seeds": args.seeds},

@@ -267,8 +267,6 @@ def _export_gltf(scene, out: pathlib.Path, regions) -> dict:
             images += extra
             materials[r.region] = mat
             summary["gltf"] = entry
-            if "base_color_file" in entry:
-                summary.setdefault("pictures", []).append(entry["base_color_file"])
         return gltf_export.export_scan(scene, out / gltf_export.GLTF_NAME, materials)
     finally:
         for mat in made:
