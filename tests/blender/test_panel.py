@@ -190,6 +190,19 @@ def test_settings_for_each_selection_path(scene):
         assert (("prop", "kl_samples") in calls) == (path == "CYCLES")
 
 
+def test_a_textured_scan_without_uvs_is_offered_a_copy_with_one(scene):
+    _with_photo(scene)
+    s = scene.brdf
+    assert ("prop", "export_gltf") in _tuples(_draw_all(bpy.context))
+    s.texture = True
+    assert ("operator", "brdf.uv_copy") not in _tuples(_draw_all(bpy.context))  # the cube's UVs
+    layers = s.target.data.uv_layers
+    layers.remove(layers[0])
+    calls = _draw_all(bpy.context)
+    assert "The scan has no UV map" in _labels(calls)
+    assert ("operator", "brdf.uv_copy") in _tuples(calls)
+
+
 def test_running(scene):
     _with_photo(scene)
     scene.brdf.running = True
