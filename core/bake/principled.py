@@ -6,17 +6,21 @@ specular lobe, a coat and a sheen, and its Fresnel follows the IOR), so its
 parameters are derived from the lobe fit (``core.bake.lobes.LobeParams``):
 
 - **metal or dielectric**: a metal when the fit has almost no diffuse (its mean
-  below ``METAL_DIFFUSE`` x its main lobe's colour), as conductors do;
-- **base color**: the Lambert albedo (dielectric) or the main lobe's colour, its
-  reflectance at normal incidence (metal), clipped to [0, 1];
-- **roughness**: the main lobe's, ``sqrt(alpha)`` (the lobe of the largest mean
-  colour);
+  below ``METAL_DIFFUSE`` x its lobes' mean colours), as conductors do;
+- **base color**: the Lambert albedo (dielectric) or the specular lobe's colour
+  (below), its reflectance at normal incidence (metal), clipped to [0, 1];
+- **one specular lobe**: a metal's lobes all together, a dielectric's main lobe
+  (the largest mean colour) with those whose alpha is within
+  ``SAME_LOBE_ALPHA_RATIO`` of its own (a fit may split one lobe in two): their
+  colours summed, their alphas' geometric mean weighted by their mean colours;
+- **roughness**: that lobe's, ``sqrt(alpha)``;
 - **specular** (dielectric): the main lobe's mean colour is the normal-incidence
   reflectance F0; IOR 1.5 and ``Specular IOR Level = F0 / 0.08`` (0.5 gives the
   IOR's own 0.04; 1 doubles it); above 0.08 the level 1 and the IOR whose doubled
   F0 it is; the tint the colour over its mean;
-- **coat**: a second lobe of a dielectric, its weight its mean colour over the
-  coat's F0 at IOR 1.5 (0.04), clipped to 1, its roughness the lobe's;
+- **coat**: a dielectric's strongest lobe of another roughness, its weight its
+  mean colour over the coat's F0 at IOR 1.5 (0.04), clipped to 1, its roughness
+  the lobe's;
 - **sheen**: the velvet's colour as weight (its largest channel) and tint, its
   roughness the velvet's sigma.
 
@@ -33,7 +37,8 @@ import numpy as np
 
 from . import lobes
 
-METAL_DIFFUSE = 0.05  # a fit whose diffuse is below this share of its main lobe is a metal
+METAL_DIFFUSE = 0.05  # a fit whose diffuse is below this share of its lobes is a metal
+SAME_LOBE_ALPHA_RATIO = 2.0  # lobes whose alphas are within this factor act as one
 _F0_IOR_1_5 = 0.04  # ((1.5 - 1) / (1.5 + 1))^2
 _LEVEL_PER_F0 = 0.5 / _F0_IOR_1_5  # Specular IOR Level 0.5 is the IOR's own F0
 
@@ -99,19 +104,28 @@ def from_lobes(params) -> PrincipledParams:
     if len(p.alphas) == 0:  # diffuse only: no specular at all
         return PrincipledParams(base_color=_colour(kd), metallic=0.0, roughness=0.5,
                                 specular_level=0.0, **sheen)
-    strength = p.colors.mean(axis=1)
+    strength = np.maximum(p.colors.mean(axis=1), 0.0)
     main = int(np.argmax(strength))
-    colour = p.colors[main]
-    roughness = _unit(np.sqrt(p.alphas[main]))
-    f0 = float(max(strength[main], 0.0))
-    if kd.mean() < METAL_DIFFUSE * max(f0, 1e-12):
+    alphas = np.asarray(p.alphas, dtype=np.float64)
+    metal = kd.mean() < METAL_DIFFUSE * max(float(strength.sum()), 1e-12)
+    # one lobe: a metal's every lobe (it has no coat), else the main lobe and those of
+    # nearly its roughness (a fit may split one lobe in two: gold's 0.30 and 0.64 at
+    # alpha 0.12 lost a third of its energy as the main lobe alone)
+    same = np.ones(len(alphas), bool) if metal else (
+        np.abs(np.log(alphas / alphas[main])) <= np.log(SAME_LOBE_ALPHA_RATIO))
+    colour = p.colors[same].sum(axis=0)
+    weights = strength[same] if strength[same].sum() > 0.0 else np.ones(int(same.sum()))
+    alpha = float(np.exp(np.average(np.log(alphas[same]), weights=weights)))
+    roughness = _unit(np.sqrt(alpha))
+    f0 = float(max(colour.mean(), 0.0))
+    if metal:
         return PrincipledParams(base_color=_colour(colour), metallic=1.0, roughness=roughness,
                                 **sheen)
     coat = {}
-    if len(p.alphas) > 1:
-        other = 1 - main
+    if not same.all():
+        other = int(np.argmax(np.where(same, -np.inf, strength)))
         coat = dict(coat_weight=_unit(strength[other] / _F0_IOR_1_5),
-                    coat_roughness=_unit(np.sqrt(p.alphas[other])))
+                    coat_roughness=_unit(np.sqrt(alphas[other])))
     tint = colour / max(f0, 1e-12)
     ior, level = 1.5, f0 * _LEVEL_PER_F0
     if level > 1.0:  # Specular IOR Level 1 doubles the IOR's F0: the IOR that gives f0

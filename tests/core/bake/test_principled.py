@@ -66,3 +66,24 @@ def test_every_value_is_finite_and_in_range_for_random_fits():
             if name not in ("IOR", "Coat IOR"):
                 assert (v >= 0.0).all() and (v <= 1.0).all(), name
         assert 1.0 <= values["IOR"] <= 40.0
+
+
+def test_a_lobe_the_fit_split_in_two_is_one_specular_lobe():
+    """Gold's fit (2026-12-03): two GGX lobes of alpha 0.121 and 0.122, colours 0.30
+    and 0.64; the main lobe alone lost a third of the energy (Principled bake error
+    0.33). Split or not, the Principled version is the same."""
+    one = lobes.LobeParams.build(diffuse=(0.0002, 0.0002, 0.0),
+                                 lobes=[("ggx", (0.9, 0.75, 0.4), 0.0, 0.1214)])
+    split = lobes.LobeParams.build(diffuse=(0.0002, 0.0002, 0.0),
+                                   lobes=[("ggx", (0.3, 0.25, 0.15), 0.0, 0.1213),
+                                          ("ggx", (0.6, 0.5, 0.25), 0.0, 0.1214)])
+    a, b = principled.from_lobes(one), principled.from_lobes(split)
+    assert a.metallic == b.metallic == 1.0
+    assert b.base_color == pytest.approx(a.base_color)
+    assert b.roughness == pytest.approx(a.roughness, rel=1e-3)
+    # a dielectric's split lobe is its specular, not a coat
+    d = principled.from_lobes(lobes.LobeParams.build(
+        diffuse=(0.3, 0.3, 0.3), lobes=[("ggx", (0.02,) * 3, 0.0, 0.05),
+                                         ("ggx", (0.02,) * 3, 0.0, 0.06)]))
+    assert d.metallic == 0.0 and d.coat_weight == 0.0
+    assert d.specular_level == pytest.approx(0.04 * principled._LEVEL_PER_F0)
