@@ -30,7 +30,11 @@ KL) and the default basis without the material (``common.default_basis_without``
   ``albedo_error_floor``: the same with the true table as the shared shape (what the
   scan's normals alone cost);
 - ``sphere``: the rendered-sphere error (``metrics.sphere_error``) of the shared
-  shape (``textured``), of the method on the same photos untextured (``untextured``:
+  shape (``textured``: against the true table at the same reference color, the
+  true texture's mean over the measured texels in the part the texture scales, as
+  only the product of table and texture is observed; ``textured_against_mean_1``:
+  against the table at the texture's mean over all texels, as before 2026-12-04),
+  of the method on the same photos untextured (``untextured``:
   the photos made with a texture of 1) and on the textured photos as they are
   (``naive``);
 - the model chosen, whether the region got a constant, the fits made, seconds.
@@ -125,6 +129,12 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
     region = result.result.regions[0]
     t = result.textures[0]
     measured = t.map.coverage == albedo.MEASURED
+    # the shared table is at the region's reference color, the mean albedo over the
+    # measured texels (core.method.albedo): only the product of table and texture is
+    # observed, so its truth is the true table with the true texture's mean over the
+    # same texels in the part the texture scales
+    mean = tex[measured].mean(axis=0) if measured.any() else np.ones(3)
+    at_reference = rest + colour * mean[:, None, None, None]
     floor = _floor(table, photos, tex, shape)
     return {
         "object": "numpy" if spot is None else "spot", "material": name, "scan": scan,
@@ -133,7 +143,8 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
         "constant": bool(t.map.constant), "reason": t.map.reason,
         "measured_texels": int(measured.sum()),
         "albedo_error": pattern_error(t, tex), "albedo_error_floor": floor,
-        "sphere": {"textured": metrics.sphere_error(region.table, table),
+        "sphere": {"textured": metrics.sphere_error(region.table, at_reference),
+                   "textured_against_mean_1": metrics.sphere_error(region.table, table),
                    "untextured": metrics.sphere_error(flat.table, table),
                    "naive": metrics.sphere_error(naive.table, table)},
         "fits": len(result.rounds), "seconds_textured": seconds,
