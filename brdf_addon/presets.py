@@ -6,19 +6,18 @@ Plain data (no bpy), so that the benchmark that measured them
 these values. Chosen from that benchmark's sweep on the blunted bunny capture
 and from the held-out comparison (docs/results.md, "The speed/accuracy trade"):
 
-- trials buy little beyond 4 with the fast selection, so Fast uses 4;
-- 20 condition-optimal samples per trial: the paper's 6 did better on the two
-  sweep materials but worse over the 12 held-out materials (median sphere error
-  0.49 against 0.40, ``bench/results/heldout_samples6.json``);
-- the Cycles selection path picked better trials than the numpy one on both
-  sweep materials (gold 0.19 against 0.30), at about 10x the time; 4, 16 and
-  64 Cycles samples picked the same trials for the gold and 4 did as well or
-  better for the plastic, so Accurate renders with 4. That sweep rendered each
-  candidate's baked lobes; since the Cycles path renders the candidate table
-  (2026-12-03), the presets' run finds Accurate choosing Balanced's trial in 7
-  of 8 runs (the same median, 0.277, at about 5x the time) and Paper worse than
-  Balanced on 3 of its 4 materials: Accurate is kept as it is until the sweep
-  is rerun with the table-rendering path.
+- trials (sweep rerun 2026-12-04 on the current defaults, four materials x 2
+  seeds): 1 trial 0.391, 4 trials 0.304, 16 trials 0.277, 64 trials 0.283, so
+  Fast uses 4 and Balanced 16;
+- 20 condition-optimal samples per trial: the paper's 6 had the lower median on
+  the sweep's four (0.254) but was worse on the gold and the plastic, and worse
+  over the 12 held-out materials (median sphere error 0.49 against 0.40,
+  ``bench/results/heldout_samples6.json``); 80 samples 0.318; neither more
+  pixels (480 x 360: 0.336) nor more components (80: 0.277) buy anything;
+- the Cycles selection path (the candidate tables rendered) picks Balanced's
+  trial for three of the four materials and a better one for the rough plastic
+  (0.060 against 0.071), the same median at about 5x the time; 4, 16 and 64
+  Cycles samples pick alike, so Accurate renders with 4.
 
 Paper is not a point of that trade but the paper's own mode, kept so that its
 result stays reproducible and for the ablation (issue 15): 6 samples per trial
