@@ -11,8 +11,9 @@ and from the held-out comparison (docs/results.md, "The speed/accuracy trade"):
   Fast uses 4 and Balanced 16;
 - 20 condition-optimal samples per trial: the paper's 6 had the lower median on
   the sweep's four (0.254) but was worse on the gold and the plastic, and worse
-  over the 12 held-out materials (median sphere error 0.49 against 0.40,
-  ``bench/results/heldout_samples6.json``); 80 samples 0.318; neither more
+  over the 19 held-out materials (median sphere error 0.500 against 0.482, lower
+  on 4 of 19; ``bench/tradeoff.py --part heldout``,
+  ``bench/results/tradeoff_heldout.json``); 80 samples 0.318; neither more
   pixels (480 x 360: 0.336) nor more components (80: 0.277) buy anything;
 - the Cycles selection path (the candidate tables rendered) picks Balanced's
   trial for three of the four materials and a better one for the rough plastic
