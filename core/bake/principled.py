@@ -13,7 +13,9 @@ parameters are derived from the lobe fit (``core.bake.lobes.LobeParams``):
   (the largest mean colour) with those whose alpha is within
   ``SAME_LOBE_ALPHA_RATIO`` of its own (a fit may split one lobe in two): their
   colours summed, their alphas' geometric mean weighted by their mean colours;
-- **roughness**: that lobe's, ``sqrt(alpha)``;
+- **roughness**: that lobe's, ``sqrt(alpha)``; a Beckmann lobe first becomes its
+  closest GGX (:func:`ggx_like_beckmann`: alpha and colour scale), since the
+  Principled BSDF has only GGX;
 - **specular** (dielectric): the main lobe's mean colour is the normal-incidence
   reflectance F0; IOR 1.5 and ``Specular IOR Level = F0 / 0.08`` (0.5 gives the
   IOR's own 0.04; 1 doubles it); above 0.08 the level 1 and the IOR whose doubled
@@ -32,6 +34,7 @@ beside it. Cycles' Principled BSDF is set to single-scattering GGX, like the bak
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -91,6 +94,59 @@ def _colour(c) -> tuple:
                                            0.0, 1.0))
 
 
+def _pairs(alpha: float, n: int = 48) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(light, view, weight) where a lobe of ``alpha`` lives, local frame: views at
+    0, 30 and 60 degrees; half vectors on an n x n polar grid out to tan theta_h =
+    8 alpha (the lobe's width is about alpha in tan theta_h), the light their
+    mirror of the view; weight the light's solid angle (4 v.h dOmega_h), so that a
+    sum over the pairs is an integral over light directions."""
+    top = np.arctan(min(8.0 * alpha, 50.0))
+    theta = (np.arange(n) + 0.5) / n * top
+    phi = (np.arange(2 * n) + 0.5) / (2 * n) * 2.0 * np.pi
+    t, f = np.meshgrid(theta, phi, indexing="ij")
+    h = np.stack([np.sin(t) * np.cos(f), np.sin(t) * np.sin(f), np.cos(t)], -1).reshape(-1, 3)
+    d_omega_h = (np.sin(t) * (top / n) * (np.pi / n)).reshape(-1)
+    lights, views, weights = [], [], []
+    for angle in np.radians([0.0, 30.0, 60.0]):
+        v = np.array([np.sin(angle), 0.0, np.cos(angle)])
+        vh = h @ v
+        light = 2.0 * vh[:, None] * h - v
+        ok = (light[:, 2] > 1e-6) & (vh > 0.0)
+        lights.append(light[ok])
+        views.append(np.broadcast_to(v, light[ok].shape))
+        weights.append(4.0 * vh[ok] * d_omega_h[ok])
+    return np.concatenate(lights), np.concatenate(views), np.concatenate(weights)
+
+
+@functools.lru_cache(maxsize=256)
+def ggx_like_beckmann(alpha: float) -> tuple[float, float]:
+    """(alpha, scale) of the GGX lobe closest to a Beckmann lobe of ``alpha``: the
+    least-squares match of their radiance (BRDF x cos theta_l, ``lobes.evaluate``)
+    integrated over light directions where the lobe lives (:func:`_pairs`), the
+    scale fitted for each GGX alpha and the alpha by a bounded search in log alpha.
+    The Principled BSDF has only GGX; a Beckmann lobe taken at its own alpha has
+    other tails (copper's bake error 0.23)."""
+    from scipy.optimize import minimize_scalar
+
+    light, view, weight = _pairs(alpha)
+
+    def radiance(dist, a):
+        lobe = lobes.LobeParams.build(lobes=[(dist, (1.0, 1.0, 1.0), 0.0, a)])
+        return lobes.evaluate(lobe, light, view)[:, 0] * light[:, 2]
+
+    target = radiance("beckmann", alpha)
+
+    def fit(log_a):
+        g = radiance("ggx", float(np.exp(log_a)))
+        k = float(np.sum(weight * g * target)) / max(float(np.sum(weight * g * g)), 1e-300)
+        return float(np.sum(weight * (k * g - target) ** 2)), k
+
+    lo, hi = np.log(max(alpha / 4.0, lobes.ALPHA_MIN)), np.log(min(alpha * 4.0, 1.0))
+    best = minimize_scalar(lambda x: fit(x)[0], method="bounded", bounds=(lo, hi),
+                           options={"xatol": 1e-4})
+    return float(np.exp(best.x)), fit(best.x)[1]
+
+
 def from_lobes(params) -> PrincipledParams:
     """The Principled BSDF's parameters for a lobe fit (see the module docstring).
     params: :class:`core.bake.lobes.LobeParams` or its dict."""
@@ -104,16 +160,20 @@ def from_lobes(params) -> PrincipledParams:
     if len(p.alphas) == 0:  # diffuse only: no specular at all
         return PrincipledParams(base_color=_colour(kd), metallic=0.0, roughness=0.5,
                                 specular_level=0.0, **sheen)
-    strength = np.maximum(p.colors.mean(axis=1), 0.0)
+    colors, alphas = np.array(p.colors, dtype=np.float64), np.array(p.alphas, dtype=np.float64)
+    for k, dist in enumerate(p.distributions):  # the Principled BSDF's GGX for a Beckmann
+        if dist == "beckmann":
+            alphas[k], scale = ggx_like_beckmann(round(float(alphas[k]), 4))
+            colors[k] *= scale
+    strength = np.maximum(colors.mean(axis=1), 0.0)
     main = int(np.argmax(strength))
-    alphas = np.asarray(p.alphas, dtype=np.float64)
     metal = kd.mean() < METAL_DIFFUSE * max(float(strength.sum()), 1e-12)
     # one lobe: a metal's every lobe (it has no coat), else the main lobe and those of
     # nearly its roughness (a fit may split one lobe in two: gold's 0.30 and 0.64 at
     # alpha 0.12 lost a third of its energy as the main lobe alone)
     same = np.ones(len(alphas), bool) if metal else (
         np.abs(np.log(alphas / alphas[main])) <= np.log(SAME_LOBE_ALPHA_RATIO))
-    colour = p.colors[same].sum(axis=0)
+    colour = colors[same].sum(axis=0)
     weights = strength[same] if strength[same].sum() > 0.0 else np.ones(int(same.sum()))
     alpha = float(np.exp(np.average(np.log(alphas[same]), weights=weights)))
     roughness = _unit(np.sqrt(alpha))

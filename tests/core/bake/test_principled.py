@@ -87,3 +87,32 @@ def test_a_lobe_the_fit_split_in_two_is_one_specular_lobe():
                                          ("ggx", (0.02,) * 3, 0.0, 0.06)]))
     assert d.metallic == 0.0 and d.coat_weight == 0.0
     assert d.specular_level == pytest.approx(0.04 * principled._LEVEL_PER_F0)
+
+
+@pytest.mark.parametrize("alpha", [0.005, 0.04, 0.12, 0.5])
+def test_the_ggx_match_of_a_beckmann_lobe_is_closer_than_its_own_alpha(alpha):
+    """The Principled BSDF has only GGX. The matched lobe (alpha, scale) renders
+    closer to the Beckmann lobe than a GGX at the Beckmann's alpha does, on random
+    light and view pairs of the upper hemisphere (not the grid it was fitted on)."""
+    a, k = principled.ggx_like_beckmann(alpha)
+    rng = np.random.default_rng(1)
+    n = 200_000
+    v = rng.normal(size=(n, 3))
+    v[:, 2] = np.abs(v[:, 2])
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    # half vectors near the normal, where the lobe lives (tan theta_h up to 6 alpha)
+    t = np.arctan(6 * alpha * np.sqrt(rng.uniform(size=n)))
+    f = rng.uniform(0, 2 * np.pi, n)
+    h = np.stack([np.sin(t) * np.cos(f), np.sin(t) * np.sin(f), np.cos(t)], -1)
+    l = 2 * np.sum(v * h, axis=1, keepdims=True) * h - v
+    ok = (l[:, 2] > 0.05) & (v[:, 2] > 0.05)
+    l, v = l[ok], v[ok]
+
+    def radiance(dist, a_, scale=1.0):
+        lobe = lobes.LobeParams.build(lobes=[(dist, (scale,) * 3, 0.0, a_)])
+        return lobes.evaluate(lobe, l, v)[:, 0] * l[:, 2]
+
+    target = radiance("beckmann", alpha)
+    matched = np.sqrt(np.mean((radiance("ggx", a, k) - target) ** 2))
+    own = np.sqrt(np.mean((radiance("ggx", alpha) - target) ** 2))
+    assert np.isfinite([a, k]).all() and matched < own
