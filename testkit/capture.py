@@ -192,11 +192,31 @@ def normal_angle_error(truth, scan, camera, resolution) -> np.ndarray:
     return np.arccos(cos)
 
 
+def _textured(material, texture_path) -> None:
+    """Multiply the table material's shading by an Image Texture (linear, on the
+    mesh's active UV map): the whole table scales with the texel's value."""
+    tree = material.node_tree
+    diffuse = next(n for n in tree.nodes if n.type == "BSDF_DIFFUSE")
+    link = diffuse.inputs["Color"].links[0]
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(str(texture_path), check_existing=False)
+    tex.image.colorspace_settings.name = "Non-Color"
+    tex.interpolation = "Closest"
+    times = tree.nodes.new("ShaderNodeMix")
+    times.data_type, times.blend_type = "RGBA", "MULTIPLY"
+    times.inputs["Factor"].default_value = 1.0
+    tree.links.new(link.from_socket, times.inputs["A"])
+    tree.links.new(tex.outputs["Color"], times.inputs["B"])
+    tree.links.new(times.outputs["Result"], diffuse.inputs["Color"])
+
+
 def render_lit_photos(truth, cameras, table, light, folder, resolution, irradiance=1.0,
-                      samples: int = 16) -> list[pathlib.Path]:
+                      samples: int = 16, texture_path=None) -> list[pathlib.Path]:
     """Linear EXR photos of ``truth`` shaded by the ground-truth ``table`` (not an
     approximation: ``brdf_addon.table_shader``) under one distant light, one per
-    camera, direct light only. A temporary scene; the user's scene is unchanged."""
+    camera, direct light only; ``texture_path``: a linear EXR on the truth's UV map
+    that multiplies the whole table per texel. A temporary scene; the user's scene
+    is unchanged."""
     from brdf_reconstruct.brdf_addon import cycles_select, table_shader
 
     folder = pathlib.Path(folder)
@@ -204,6 +224,8 @@ def render_lit_photos(truth, cameras, table, light, folder, resolution, irradian
     light = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
     images_before = set(bpy.data.images)
     material = table_shader.table_material("ground truth", table, light)
+    if texture_path is not None:
+        _textured(material, texture_path)
     try:
         paths = [folder / (pathlib.Path(cam["brdf_image_name"]).stem + ".exr")
                  for cam in cameras]
@@ -248,30 +270,45 @@ def build_scene(sparse_folder, resolution=(240, 180), n_views: int = 6, seed: in
 
 def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
              light=(0.35, -0.45, 0.82), resolution=(160, 120), focal_px: float | None = None,
-             seed: int = 0, scan_options: dict | None = None) -> pathlib.Path:
+             seed: int = 0, scan_options: dict | None = None,
+             texture: np.ndarray | None = None) -> pathlib.Path:
     """A whole synthetic capture in ``folder``: ``scan.ply`` (the degraded mesh),
     ``sparse/0`` (COLMAP model of every camera), ``lit/*.exr`` (photos of the
     ground truth shaded by ``table`` from the ``lit_views`` cameras under one
     distant light), ``truth.binary`` and ``job.toml`` for the batch entry.
     focal_px: default 1.25 x the width, so the object fills the frame alike at
-    any resolution. Resets Blender to an empty scene. Returns the job file's path."""
+    any resolution. texture: (H, W, 3) linear multiplier on the truth's UV map (row 0
+    at the top; the mesh needs a UV map, as Spot has), written as
+    ``truth_texture.exr``; the photos' whole table scales with it, the scan keeps the
+    UV map (``scan.ply`` with UVs) and the job turns ``texture`` on. Resets Blender
+    to an empty scene. Returns the job file's path."""
     from brdf_reconstruct.core.brdf import merl
+    from brdf_reconstruct.core.method import texture_io
 
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     truth, scan, cameras = build_scene(folder / "sparse" / "0", resolution, n_views, seed,
                                        scan_options, mesh, focal_px)
     _say(f"rendering {len(lit_views)} lit photos with the true table (Cycles)")
+    texture_path = None
+    if texture is not None:
+        if not len(truth.data.uv_layers):
+            raise ValueError("a textured capture needs a ground truth with a UV map")
+        texture_path = folder / "truth_texture.exr"
+        texture_io.write_albedo(texture_path, np.asarray(texture, dtype=np.float64), "EXR")
     photos = render_lit_photos(truth, [cameras[i] for i in lit_views], table, light,
-                               folder / "lit", resolution)
+                               folder / "lit", resolution, texture_path=texture_path)
     bpy.ops.object.select_all(action="DESELECT")
     scan.select_set(True)
     bpy.context.view_layer.objects.active = scan
     bpy.ops.wm.ply_export(filepath=str(folder / "scan.ply"), export_selected_objects=True,
-                          export_normals=True, apply_modifiers=True)
+                          export_normals=True, export_uv=True, apply_modifiers=True)
     merl.write(folder / "truth.binary", table)
     lines = ['mesh = "scan.ply"', 'colmap = "sparse/0"', 'out = "out"', "",
-             "[settings]", f"seed = {seed}", ""]
+             "[settings]", f"seed = {seed}"]
+    if texture is not None:
+        lines += ["texture = true", f"texture_size = {np.shape(texture)[0]}"]
+    lines += [""]
     for path in photos:
         lines += ["[[photo]]", f'image = "lit/{path.name}"',
                   f'camera = "{path.stem}.png"', f"light = {list(map(float, light))}", ""]
