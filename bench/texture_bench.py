@@ -87,14 +87,16 @@ def inputs(colour, rest, texture, truth, seen, seed: int):
                                      rng_base=100 * seed)
 
 
-def spot_arrays() -> dict:
-    """Spot's capture arrays with UVs: {"exact": ..., "blunted": ...} (the degraded scan)."""
+def spot_arrays(light=None) -> dict:
+    """Spot's capture arrays with UVs: {"exact": ..., "blunted": ...} (the degraded
+    scan), under ``light`` (world, towards it; default ``capture_arrays.LIGHT``)."""
     import capture_arrays
     import photo_bench
 
     from testkit import measured
 
-    degraded = capture_arrays.gbuffers(mesh=measured.DATA / "spot.obj", uv=True)
+    light = capture_arrays.LIGHT if light is None else tuple(light)
+    degraded = capture_arrays.gbuffers(mesh=measured.DATA / "spot.obj", uv=True, light=light)
     exact = photo_bench.exact_scan(degraded)
     exact["scan_uv"] = degraded["truth_uv"]
     return {"exact": exact, "blunted": degraded}

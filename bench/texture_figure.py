@@ -136,17 +136,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     info = common.machine()
     t0 = time.perf_counter()
-    from testkit import measured
-
     spot = texture_bench.spot_arrays()
     light_b = np.asarray(RELIGHT) / np.linalg.norm(RELIGHT)
-    degraded_b = capture_arrays.gbuffers(mesh=measured.DATA / "spot.obj", uv=True,
-                                         light=tuple(light_b))
-    import photo_bench
-
-    exact_b = photo_bench.exact_scan(degraded_b)
-    exact_b["scan_uv"] = degraded_b["truth_uv"]
-    relit = {"exact": exact_b, "blunted": degraded_b}
+    relit = texture_bench.spot_arrays(light_b)
     rows = []
     for scan, label in (("exact", "exact"), ("blunted", "degraded")):
         r = one_scan(args.material, label, spot[scan], relit[scan], args.seed)

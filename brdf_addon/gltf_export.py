@@ -66,11 +66,9 @@ def region_material(name: str, fit, provenance: dict, out: pathlib.Path, region:
     entry = {"material": mat.name, "principled": json.loads(mat["brdf_principled"])}
     images = []
     if texture is not None:
-        metal = values["Metallic"].default_value > 0.5
-        if texture.model == "diffuse" and metal:
+        if not material.takes_texture(mat, texture.model):
             entry["texture"] = None
-            entry["texture_note"] = ("a metal has no diffuse color, which the texture holds: "
-                                     "not linked")
+            entry["texture_note"] = material.METAL_TEXTURE_NOTE
         else:
             if texture.model == "diffuse":
                 image = albedo_image

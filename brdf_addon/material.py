@@ -203,6 +203,20 @@ def build_principled_material(name: str, fit, provenance: dict) -> bpy.types.Mat
     return mat
 
 
+METAL_TEXTURE_NOTE = ("the Principled version is a metal, and the texture holds the "
+                      "diffuse color: not linked")
+
+
+def takes_texture(mat, model: str) -> bool:
+    """Whether :func:`add_texture` should link a texture of ``model`` into ``mat``:
+    every pair but a metallic Principled version (Metallic above 0.5) and a
+    "diffuse" texture, whose file holds a diffuse colour a metal has not
+    (:data:`METAL_TEXTURE_NOTE` says so in the report)."""
+    bsdf = mat.node_tree.nodes.get(PRINCIPLED_NAME)
+    metal = bsdf is not None and bsdf.inputs["Metallic"].default_value > 0.5
+    return not (metal and model == "diffuse")
+
+
 def add_texture(mat, image, uv_map: str = "", model: str = "diffuse") -> None:
     """Put a textured region's albedo image into a material :func:`build_material`
     or :func:`build_principled_material` made: an Image Texture on the mesh's UV map

@@ -227,11 +227,9 @@ def _bake(scene, r, label, table_path, entry, fit, image=None) -> dict:
     if "brdf_principled" in mat:
         out["principled"] = json.loads(mat["brdf_principled"])
     if image is not None:
-        metal = chosen == "PRINCIPLED" and out["principled"]["metallic"] > 0.5
-        if metal and image[1] == "diffuse":  # the file holds a diffuse color a metal has not
+        if not material.takes_texture(mat, image[1]):
             out["texture_applied"] = False
-            out["texture_note"] = ("the Principled version is a metal, and the texture holds "
-                                   "the diffuse color: not linked")
+            out["texture_note"] = material.METAL_TEXTURE_NOTE
         else:
             material.add_texture(mat, image[0], scene.brdf.uv_map, image[1])
             out["texture_applied"] = True

@@ -184,3 +184,26 @@ def test_the_principled_version_is_measured_beside_the_node_group(heldout_fit):
     print(f"bake error: node group {group['max']:.3f}, Principled {principled['max']:.3f}")
     assert np.isfinite(principled["max"]) and principled["max"] < 0.3
     assert group["max"] <= principled["max"] + 0.02
+
+
+def test_a_metal_principled_version_takes_no_diffuse_texture():
+    """A diffuse-color texture has nothing to color on a metallic Principled version
+    (its base color is the specular's); a "whole" texture, and the node group, take
+    either. The bake and the glTF export both ask :func:`material.takes_texture`."""
+    metal = lobes.LobeParams.build(diffuse=(0.001,) * 3,
+                                   lobes=[("ggx", (0.9, 0.7, 0.3), 0.0, 0.05)])
+    plastic = lobes.LobeParams.build(diffuse=(0.5, 0.2, 0.1),
+                                     lobes=[("ggx", (0.04,) * 3, 0.0, 0.05)])
+    made = []
+    try:
+        for fit, model, expected in ((metal, "diffuse", False), (metal, "whole", True),
+                                     (plastic, "diffuse", True)):
+            mat = material.build_principled_material("p", fit, {})
+            made.append(mat)
+            assert material.takes_texture(mat, model) is expected
+        group = material.build_material("g", metal, {})
+        made.append(group)
+        assert material.takes_texture(group, "diffuse")
+    finally:
+        for mat in made:
+            bpy.data.materials.remove(mat)

@@ -14,6 +14,7 @@ from brdf_reconstruct.brdf_addon import gathering, photo_list, runner  # noqa: E
 from brdf_reconstruct.core.capture import photo_io  # noqa: E402
 from brdf_reconstruct.core.method import texture_io  # noqa: E402
 from testkit import blender_scene as BS  # noqa: E402
+from testkit import glb  # noqa: E402
 
 CELLS = 2  # checker cells a side in UV
 PHOTO = 96  # photo pixels a side: a texel spans several pixels
@@ -161,33 +162,6 @@ def test_the_principled_version_takes_the_texture_as_its_base_color(textured):
     assert {m.name for m in bpy.data.materials} - materials_before == {mat.name}
 
 
-def _read_glb(path) -> tuple[dict, bytes]:
-    """(the JSON chunk, the BIN chunk) of a glTF 2.0 binary (Khronos' layout: a
-    12-byte header 'glTF', version 2, length; then chunks of length, type, data)."""
-    import struct
-
-    data = path.read_bytes()
-    magic, version, length = struct.unpack_from("<4sII", data, 0)
-    assert (magic, version, length) == (b"glTF", 2, len(data))
-    chunks, at = {}, 12
-    while at < len(data):
-        size, kind = struct.unpack_from("<I4s", data, at)
-        chunks[kind] = data[at + 8:at + 8 + size]
-        at += 8 + size
-    return json.loads(chunks[b"JSON"]), chunks.get(b"BIN\x00", b"")
-
-
-def _png_pixels(data: bytes, tmp_path) -> np.ndarray:
-    import OpenImageIO as oiio
-
-    path = tmp_path / "embedded.png"
-    path.write_bytes(data)
-    file = oiio.ImageInput.open(str(path))
-    pixels = np.asarray(file.read_image(format=oiio.FLOAT))[..., :3]
-    file.close()
-    return pixels
-
-
 def test_the_gltf_export_carries_the_principled_version_and_its_texture(textured, tmp_path):
     """Export glTF: the scan as a .glb wearing the region's Principled version, read
     back two ways: its JSON (factors, texture, UVs, placement) and Blender's own
@@ -211,7 +185,7 @@ def test_the_gltf_export_carries_the_principled_version_and_its_texture(textured
     assert values["metallic"] == 0.0  # the checker is a Lambert
     assert region["gltf"]["texture"] == region["texture"]["albedo"]
 
-    doc, _ = _read_glb(out / "brdf_scan.glb")
+    doc, _ = glb.read_glb(out / "brdf_scan.glb")
     (mat,) = doc["materials"]
     assert mat["name"] == region["gltf"]["material"]
     pbr = mat["pbrMetallicRoughness"]

@@ -351,11 +351,9 @@ def test_the_gltf_export_gives_each_face_set_its_region_material(tiny):
     names = {r["region"]: r["gltf"]["material"] for r in report["regions"]}
     assert report["gltf"]["faces"] == {names[4]: int((ids == 4).sum()),
                                        names[9]: int((ids == 9).sum())}
-    import struct
+    from testkit import glb
 
-    data = (tiny["dir"] / "out" / "brdf_scan.glb").read_bytes()
-    size = struct.unpack_from("<I", data, 12)[0]
-    doc = json.loads(data[20:20 + size])
+    doc, _ = glb.read_glb(tiny["dir"] / "out" / "brdf_scan.glb")
     (gl_mesh,) = doc["meshes"]
     by_name = {doc["materials"][p["material"]]["name"]: p for p in gl_mesh["primitives"]}
     assert set(by_name) == set(names.values())
