@@ -9,19 +9,21 @@ analytic ones and one measured material per class, ``testkit.measured.one_per_cl
 ``--quick``: 3 and 2) and each seed, three photos of the material's table shaded on
 the true geometry with 1 % noise (``capture_arrays.photo_inputs``) go through
 ``core.method.pipeline.run`` with each mode's settings (``MODES``: the Fast and
-Balanced presets' fast-KL settings, the paper's 6 samples x 16 trials with the
-fast KL, and Balanced with the photo-consistency refit, ``refine="photo"``; the
-Cycles selection of the Accurate and Paper presets is not run here), on the
-degraded scan and on the exact scan (the truth's own G-buffers: the floor;
-Balanced and refined only). Balanced and refined come from one run: the refined
-row is the chosen trial refitted, Balanced's the chosen trial as it is, its time
-less the refit's. The basis is the shipped
+Balanced presets' fast-KL settings, which keep the highlights' energy
+(``refine="energy"``); "trials", Balanced's chosen trial before that refit (Balanced
+before 2026-12-04); the paper's 6 samples x 16 trials with the fast KL; and
+"refined", Balanced's chosen trial refitted to every pixel
+(``refine.photo_consistent``); the Cycles selection of the Accurate and Paper presets
+is not run here), on the degraded scan and on the exact scan (the truth's own
+G-buffers: the floor; Balanced, trials and refined only). Balanced, trials and
+refined come from one run, each timed as its own. The basis is the shipped
 default that never saw the material (``common.default_basis_without``).
 
 Per run: ``sphere`` (``metrics.sphere_error``, three evaluation lights);
 ``self_consistency``, the chosen table re-rendered on the scan's G-buffers under
 the capture's light against the input photos (relative RMSE over the region's
-pixels of all photos); ``energy``, the chosen table's radiance summed over the
+pixels of all photos; ``self_consistency_reliable`` over the run's reliable
+pixels only, the ones the method trusts); ``energy``, the chosen table's radiance summed over the
 photos on the true geometry over the true table's (1 = right, 0.5 = half the
 energy); ``seconds`` per region (``pipeline_reliable_trials_selection``'s share:
 reliable, sampling, trials, KL, expansion). Summaries per object, scan and mode:
@@ -44,19 +46,21 @@ import common
 import numpy as np
 
 from brdf_reconstruct.core.brdf import metrics
-from brdf_reconstruct.core.method import pipeline, selection
+from brdf_reconstruct.core.method import pipeline, refine, selection
 from testkit import measured
 
 MODES = {
-    "fast": dict(n_samples=20, n_trials=4),
-    "balanced": dict(n_samples=20, n_trials=16),
-    "paper": dict(n_samples=6, n_trials=16),
+    "fast": dict(n_samples=20, n_trials=4, refine="energy"),
+    "balanced": dict(n_samples=20, n_trials=16, refine="energy"),
+    "trials": dict(n_samples=20, n_trials=16, refine="none"),
+    "paper": dict(n_samples=6, n_trials=16, refine="none"),
     "refined": dict(n_samples=20, n_trials=16, refine="photo"),
 }
-# "balanced" and "refined" come from one run (refine on): Balanced's row scores the
-# chosen trial as it is, the refined row the same trial refitted to the photos
-PAIRED = {"balanced": "refined"}
-EXACT_MODES = ("balanced", "refined")
+# "trials" and "refined" come from Balanced's run: "trials" scores its chosen trial
+# as it is (Balanced before 2026-12-04, without keeping the highlights' energy),
+# "refined" the same trial refitted to every pixel (refine.photo_consistent)
+PAIRED = {"balanced": ("trials", "refined")}
+EXACT_MODES = ("balanced", "trials", "refined")
 SCANS = ("scan", "exact")
 
 
@@ -88,11 +92,11 @@ def main(argv=None) -> int:
                 for scan, arrays in scans.items():
                     inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
                     for mode in MODES if scan == "scan" else EXACT_MODES:
-                        if mode in PAIRED.values():
+                        if any(mode in pair for pair in PAIRED.values()):
                             continue  # scored in its pair's run
                         rows += _run(obj, name, seed, scan, mode, B, arrays, inputs, truth)
                 print(f"{obj} {name} seed {seed}: " + ", ".join(
-                    f"{r['scan']}/{r['mode']} {r['sphere']:.3f}" for r in rows[-6:]),
+                    f"{r['scan']}/{r['mode']} {r['sphere']:.3f}" for r in rows[-8:]),
                     flush=True)
     summary = _summary(rows, objects)
     doc = {"machine": common.machine_end(info), "materials": names, "seeds": list(range(seeds)),
@@ -107,9 +111,8 @@ def main(argv=None) -> int:
 
 
 def _run(obj, name, seed, scan, mode, B, arrays, inputs, truth) -> list[dict]:
-    """The rows of one pipeline run: ``mode``'s, and its pair's (PAIRED) if it has one."""
-    paired = PAIRED.get(mode)
-    settings = pipeline.PipelineSettings(seed=seed, **MODES[paired or mode])
+    """The rows of one pipeline run: ``mode``'s, and its pairs' (PAIRED) if it has any."""
+    settings = pipeline.PipelineSettings(seed=seed, **MODES[mode])
     t0 = time.perf_counter()
     result = pipeline.run(B, inputs, settings, regions=[0])
     wall = time.perf_counter() - t0
@@ -118,32 +121,48 @@ def _run(obj, name, seed, scan, mode, B, arrays, inputs, truth) -> list[dict]:
     timings = {k: float(v) for k, v in region.timings.items()}
     base = {"object": obj, "material": name, "measured": common.is_measured(name),
             "seed": seed, "scan": scan}
-    if paired is None:
-        return [dict(base, mode=mode, **_scores(region.table, truth, arrays, inputs),
-                     seconds=seconds, timings=timings, wall=wall)]
-    refit = timings.pop("refinement")
-    plain = region.candidates[region.winner]  # the chosen trial, as Balanced gives it
-    return [dict(base, mode=mode, **_scores(plain, truth, arrays, inputs),
-                 seconds=seconds - refit, timings=timings, wall=wall - refit),
-            dict(base, mode=paired, **_scores(region.table, truth, arrays, inputs),
-                 seconds=seconds, timings=dict(timings, refinement=refit), wall=wall,
-                 refinement=region.refinement)]
+    reliable_px = region.reliable_pixels
+    rows = [dict(base, mode=mode, **_scores(region.table, truth, arrays, inputs, reliable_px),
+                 seconds=seconds, timings=timings, wall=wall, refinement=region.refinement)]
+    if mode not in PAIRED:
+        return rows
+    refit_s = timings.get("refinement", 0.0)
+    start = region.candidates.reconstructions[region.winner]  # the chosen trial
+    rows.append(dict(base, mode="trials", **_scores(start.expand(), truth, arrays, inputs,
+                                                       reliable_px),
+                     seconds=seconds - refit_s, wall=wall - refit_s))
+    _, basis, observed, trusted, _ = region.refine_inputs
+    t0 = time.perf_counter()
+    photo = refine.photo_consistent(basis, start, observed, trusted)
+    photo_s = time.perf_counter() - t0
+    rows.append(dict(base, mode="refined", **_scores(photo.table, truth, arrays, inputs,
+                                                        reliable_px),
+                     seconds=seconds - refit_s + photo_s, wall=wall - refit_s + photo_s))
+    return rows
 
 
-def _scores(table, truth, arrays, inputs) -> dict:
-    """Sphere error, self-consistency on the scan and energy of one chosen table."""
+def _scores(table, truth, arrays, inputs, reliable_pixels=None) -> dict:
+    """Sphere error, self-consistency on the scan (over the region's pixels, and over
+    ``reliable_pixels`` (N, 3) (view, row, column)) and energy of one chosen table."""
     if not np.all(np.isfinite(table)):
         raise AssertionError("a chosen table holds NaN or Inf")
-    num = den = 0.0
-    for p in inputs:
+    num = den = num_r = den_r = 0.0
+    for i, p in enumerate(inputs):
         mask = (np.asarray(p.region) == 0) & np.all(np.isfinite(p.photo), axis=-1)
         again = selection.shade_gbuffer(table, p.normal, p.visibility, mask, p.position,
                                         p.camera_center, p.light, p.irradiance)
         num += float(np.sum((again[mask] - p.photo[mask]) ** 2))
         den += float(np.sum(p.photo[mask] ** 2))
+        if reliable_pixels is not None:
+            px = reliable_pixels[reliable_pixels[:, 0] == i]
+            a, b = again[px[:, 1], px[:, 2]], p.photo[px[:, 1], px[:, 2]]
+            num_r += float(np.sum((a - b) ** 2))
+            den_r += float(np.sum(b**2))
     true_energy = energy(truth, arrays, inputs)
     return {"sphere": float(metrics.sphere_error(table, truth)),
             "self_consistency": float(np.sqrt(num / den)) if den > 0 else float("nan"),
+            "self_consistency_reliable": (float(np.sqrt(num_r / den_r)) if den_r > 0
+                                          else float("nan")),
             "energy": (energy(table, arrays, inputs) / true_energy if true_energy > 0
                        else float("nan"))}
 
@@ -181,6 +200,8 @@ def _summary(rows, objects) -> dict:
                                                 if common.is_measured(m)]),
                     "self_consistency": float(np.median(list(_per_material(
                         rows, obj, scan, mode, "self_consistency").values()))),
+                    "self_consistency_reliable": float(np.median(list(_per_material(
+                        rows, obj, scan, mode, "self_consistency_reliable").values()))),
                     "energy_min": float(min(_per_material(rows, obj, scan, mode,
                                                           "energy").values())),
                     "energy_median": float(np.median(list(_per_material(

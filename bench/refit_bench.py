@@ -96,7 +96,7 @@ def _run(arrays, truth, B, seed, sigmas) -> dict:
     inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
     settings = pipeline.PipelineSettings(seed=seed, n_samples=20, n_trials=16, refine="photo")
     region = pipeline.run(B, inputs, settings, regions=[0]).regions[0]
-    basis, observed, trusted = region.refine_inputs
+    _, basis, observed, trusted, _ = region.refine_inputs
     start = region.candidates.reconstructions[region.winner]
     # the trial's KL is the selection's (the bins depend on the photos alone); the
     # refit is the pipeline's own (region.table), scored on the same views

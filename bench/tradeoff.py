@@ -90,6 +90,9 @@ class Point:
     constraints: str = "all"  # all | none | curvature | monotonicity | brightest
     noise: float = 0.01
     scan: str = "blunted"  # or "exact": the scan is the ground truth (good normals)
+    # what follows the selection (pipeline.REFINEMENTS): the sweep measures the trials
+    # alone ("none"); a preset's point takes its keep_highlight_energy
+    refine: str = "none"
     # the default (measured) basis without the material (common.default_basis_without);
     # rows of runs before 2026-12-02 (analytic basis) lack the field and are never reused
     basis: str = "measured"
@@ -179,7 +182,7 @@ def run_point(point: Point) -> dict:
     settings = pipeline.PipelineSettings(
         reliable=reliable.ReliableSettings(**CONSTRAINTS[point.constraints]),
         n_samples=point.samples, n_trials=point.trials, subset_fraction=point.subset,
-        seed=point.seed)
+        seed=point.seed, refine=point.refine)
     t0 = time.perf_counter()
     result = pipeline.run(B, inputs, settings)
     pipeline_s = time.perf_counter() - t0
@@ -190,8 +193,13 @@ def run_point(point: Point) -> dict:
     table = region.table  # the fast winner's, expanded (and timed) by the pipeline
     if point.kl == "cycles":
         winner, timings["selection"] = _cycles_select(point, arrays, inputs, region.candidates)
-        t0 = time.perf_counter()  # the extension expands the Cycles winner again (runner)
-        table = region.candidates[winner]
+        t0 = time.perf_counter()  # the extension expands (or refits) the Cycles winner (runner)
+        if region.refine_inputs is None:
+            table = region.candidates[winner]
+        elif winner != region.winner:
+            region.winner = winner
+            pipeline.refine_chosen(region)
+            table = region.table
         timings["expansion"] += time.perf_counter() - t0
     table = np.asarray(table, dtype=np.float64)
     t0 = time.perf_counter()
@@ -251,7 +259,7 @@ def _pool():
 
 
 def _point_key(point: dict) -> str:
-    return json.dumps(point, sort_keys=True)
+    return json.dumps({"refine": "none"} | point, sort_keys=True)  # as _setting
 
 
 def _run_all(points, label: str, journal: pathlib.Path | None = None,
@@ -315,6 +323,7 @@ def sweep_points(quick: bool) -> tuple[list, dict]:
 def _setting(point: dict) -> str:
     """A point's settings without material and seed, as canonical JSON (tuples and
     lists alike), for matching rows to configurations."""
+    point = {"refine": "none"} | point  # rows from before the field: no refinement
     return json.dumps({k: v for k, v in point.items() if k not in ("material", "seed")},
                       sort_keys=True)
 
@@ -369,7 +378,8 @@ def preset_points(quick: bool) -> dict:
     for name, p in presets.items():
         configs[name] = dataclasses.replace(
             BASE, samples=p["samples"], trials=p["trials"], subset=p["subset_fraction"],
-            kl="cycles" if p["kl_path"] == "CYCLES" else "fast", kl_samples=p["kl_samples"])
+            kl="cycles" if p["kl_path"] == "CYCLES" else "fast", kl_samples=p["kl_samples"],
+            refine="energy" if p.get("keep_highlight_energy") else "none")
     return configs
 
 
@@ -425,7 +435,7 @@ def run_ablation(quick: bool, samples: int = BASE.samples) -> dict:
         for name, options in CONSTRAINTS.items():
             settings = pipeline.PipelineSettings(
                 reliable=reliable.ReliableSettings(**options), n_samples=samples,
-                n_trials=BASE.trials, subset_fraction=BASE.subset, seed=0)
+                n_trials=BASE.trials, subset_fraction=BASE.subset, seed=0, refine="none")
             try:
                 r = pipeline.run(B, inputs, settings).regions[0]
             except ValueError as error:
@@ -604,9 +614,9 @@ def main(argv=None) -> int:
                   for m in MATERIALS for s in SEEDS]
         # a preset that is a point of the sweep is not run again: its rows are reused
         def key(p):
-            return json.dumps(dataclasses.asdict(p), sort_keys=True)
+            return _point_key(dataclasses.asdict(p))
 
-        done = {json.dumps(r["point"], sort_keys=True): r for r in report.get("rows", [])}
+        done = {_point_key(r["point"]): r for r in report.get("rows", [])}
         todo = [p for p in points if key(p) not in done]
         ran = {key(p): r for p, r in zip(todo, _run_all(todo, "presets"), strict=True)}
         rows = [done.get(key(p)) or ran[key(p)] for p in points]

@@ -180,7 +180,8 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
         col.prop(s, "min_cosine")
         col = layout.column(heading="Sampling")
         for name in ("samples", "sampler", "trials", "subset_fraction",
-                     "min_reliable_samples", "refine_to_photos"):
+                     "min_reliable_samples", "keep_highlight_energy",
+                     "refine_to_photos"):
             col.prop(s, name)
         layout.prop(s, "material_model")
         layout.prop(s, "export_gltf")

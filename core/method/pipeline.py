@@ -31,7 +31,11 @@ from ..progress import Cancelled as Cancelled  # re-exported: what run() raises
 from ..progress import check
 from . import observations, refine, reliable, sampling, selection
 
-REFINEMENTS = ("none", "photo")
+# What follows the KL selection (``refine``): nothing (the paper's method), the
+# chosen trial refitted to each photo's radiance sum ("energy", the default:
+# ``refine.energy_consistent``) or to every observed pixel ("photo":
+# ``refine.photo_consistent``, for accurate normals)
+REFINEMENTS = ("none", "energy", "photo")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -71,7 +75,9 @@ class PipelineSettings:
     criterion that chooses them, "condition" (the paper's condition number, the
     default: in the photo pipeline it measured as well as the risk or better,
     docs/results.md) or "risk" (Bayes risk of the reconstruction, the core's
-    default for exact values); ``core.method.sampling``.
+    default for exact values); ``core.method.sampling``. refine: what follows
+    the selection, one of :data:`REFINEMENTS` ("energy" by default; "none" is
+    the paper's method).
     n_trials: random-subset reconstructions per region. subset_fraction: share
     of the reliable samples each trial draws from. min_reliable_samples: a
     region with fewer reliable samples is skipped. kl_bins: histogram bins of
@@ -87,7 +93,7 @@ class PipelineSettings:
     kl_bins: int = 64
     seed: int = 0
     sampler: str = "condition"
-    refine: str = "none"
+    refine: str = "energy"
 
     def __post_init__(self):
         for name in ("n_samples", "n_trials", "min_reliable_samples", "kl_bins"):
@@ -144,8 +150,14 @@ class RegionResult:
     (optimal cell choice), ``reconstruction`` (the fits), ``selection`` (KL, from
     each trial's coefficients at the photos' cells), ``expansion`` (the chosen
     trial's full table), ``refinement`` (when on).
-    refinement: with ``refine="photo"``, the chosen trial's relative RMSE against
-    the observed pixels ``before`` and ``after`` the refit (empty when off).
+    refinement: with a refinement on, its ``method``, the chosen ``trial``, and the
+    chosen trial's relative RMSE against the observed pixels and its energy ratio
+    (``refine.energy_ratio``: predicted over photographed radiance, summed over
+    them) ``before`` and ``after`` the refit (empty when off). The energy refit
+    also records ``normal_noise_deg`` (``refine.normal_noise`` over the region),
+    and ``skipped``, one sentence, where the chosen trial is kept: that noise is
+    above ``refine.MAX_NORMAL_NOISE_DEG``, or the trial's energy ratio is within
+    ``refine.ENERGY_TOLERANCE`` of 1 (nothing to give back).
     refine_inputs: what :func:`refine_chosen` needs to refit another winner (the
     Cycles path's); None when the refinement is off.
     """
@@ -313,36 +325,66 @@ def run_region(
     result.status = "ok"
     result.kl = chosen.kl
     result.winner = int(chosen.winner)
-    if settings.refine == "none":
+    method = settings.refine
+    if method == "energy":  # kept only where the scan's normals are not pixel noise
+        noise = refine.normal_noise([p.normal for p in inputs],
+                                    [np.asarray(p.region) == region for p in inputs])
+        result.refinement = {"method": "energy", "trial": int(result.winner),
+                             "normal_noise_deg": noise}
+        if noise > refine.MAX_NORMAL_NOISE_DEG:
+            method = "none"
+            result.refinement["skipped"] = (
+                f"the scan's normals change from pixel to pixel by a median {noise:.1f} "
+                f"degrees (more than {refine.MAX_NORMAL_NOISE_DEG:g}), so the photos' "
+                "energy was not refitted")
+    if method == "none":
         t0 = time.perf_counter()
         result.table = trials[chosen.winner][0].table  # the only full table expanded
         result.timings["expansion"] = time.perf_counter() - t0
     result.candidates = CandidateTables([rec for rec, _ in trials])
     result.trials = [dict(rec.summary(), samples_used=int(len(used))) for rec, used in trials]
-    if settings.refine == "photo":
-        result.refine_inputs = (basis, observed, cand)
+    if method != "none":
+        # Eq. (2)'s bound on the peak where Eq. (2) holds (not with the peak clipped)
+        options = {"peak_bound": rel.use_brightest} if method == "energy" else {}
+        result.refine_inputs = (method, basis, observed, cand, options)
         check(cancelled)
         if progress:
-            progress(1.0, f"region {region}: refining the chosen table to the photos")
+            progress(1.0, f"region {region}: refining the chosen table "
+                     + ("(the photos' energy)" if method == "energy" else "to the photos"))
         refine_chosen(result)
     return result
 
 
 def refine_chosen(result: RegionResult) -> None:
-    """Refit ``result``'s chosen trial (``result.winner``) to the region's observed
-    pixels (``core.method.refine.photo_consistent``) and make it ``result.table``;
-    records ``refinement`` and its time. Nothing to do when the refinement is off
+    """Refit ``result``'s chosen trial (``result.winner``) with the run's refinement
+    (``core.method.refine.energy_consistent`` or ``photo_consistent``, on the
+    region's observed pixels) and make it ``result.table``; records
+    ``refinement`` and its time. Nothing to do when the refinement is off
     (``refine_inputs`` None)."""
     if result.refine_inputs is None:
         return
-    basis, observed, trusted = result.refine_inputs
+    method, basis, observed, trusted, options = result.refine_inputs
     t0 = time.perf_counter()
     start = result.candidates.reconstructions[result.winner]
-    refined = refine.photo_consistent(basis, start, observed, trusted)
+    noise = {k: v for k, v in result.refinement.items() if k == "normal_noise_deg"}
+    energy = refine.energy_ratio(start, observed)
+    if method == "energy" and abs(energy - 1.0) <= refine.ENERGY_TOLERANCE:
+        result.table = start.table  # nothing to give back
+        result.refinement = {
+            **noise, "method": method, "trial": int(result.winner), "energy_before": energy,
+            "skipped": (f"the chosen trial's radiance is already within "
+                        f"{100 * refine.ENERGY_TOLERANCE:g} % of the photos' "
+                        f"({energy:.3f} of it), so it was kept as it is")}
+        result.timings["refinement"] = time.perf_counter() - t0
+        return
+    fit = refine.energy_consistent if method == "energy" else refine.photo_consistent
+    refined = fit(basis, start, observed, trusted, **options)
     result.table = refined.table
-    result.refinement = {"trial": int(result.winner),
-                         "before": refine.relative_rmse(start, observed),
-                         "after": refine.relative_rmse(refined, observed)}
+    result.refinement = {
+        **noise, "method": method, "trial": int(result.winner),
+        "before": refine.relative_rmse(start, observed),
+        "after": refine.relative_rmse(refined, observed),
+        "energy_before": energy, "energy_after": refine.energy_ratio(refined, observed)}
     result.timings["refinement"] = time.perf_counter() - t0
 
 

@@ -11,6 +11,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from brdf_reconstruct.brdf_addon import job as job_module  # noqa: E402
+from brdf_reconstruct.brdf_addon import props as props_module  # noqa: E402
 from brdf_reconstruct.brdf_addon.presets import PRESETS  # noqa: E402
 
 
@@ -40,15 +41,20 @@ def test_choosing_a_preset_sets_its_values(scene, name):
 
 # a value other than every preset's, for each setting a preset names
 OFF_PRESET = {"samples": 33, "trials": 7, "subset_fraction": 0.25, "kl_path": "CYCLES",
-              "kl_samples": 64}
+              "kl_samples": 64, "keep_highlight_energy": False}
+# the values no single setting can be off for every preset (kl_path: Fast's is FAST,
+# Accurate's CYCLES; keep_highlight_energy: Paper's is off, the others' on)
+SHARED_VALUES = ("kl_path", "keep_highlight_energy")
 
 
 def test_every_setting_a_preset_names_has_an_off_preset_value():
     keys = {k for values in PRESETS.values() for k in values}
     assert set(OFF_PRESET) == keys
     for values in PRESETS.values():
-        assert all(values[k] != v for k, v in OFF_PRESET.items() if k != "kl_path")
-    assert OFF_PRESET["kl_path"] != PRESETS["FAST"]["kl_path"]
+        assert all(values[k] != v for k, v in OFF_PRESET.items() if k not in SHARED_VALUES)
+    for key in SHARED_VALUES:
+        assert OFF_PRESET[key] != PRESETS["FAST"][key]
+        assert OFF_PRESET[key] != PRESETS["BALANCED"][key]
 
 
 def test_editing_a_preset_value_makes_it_custom_and_choosing_again_restores(scene):
@@ -91,16 +97,18 @@ def test_settings_no_preset_names_keep_it(scene):
 def test_paper_preset_is_the_papers_mode(scene):
     """6 samples per trial (Ono et al. 2017, Sec. 4.1), 16 trials of half the reliable
     pixels, and the KL of Cycles renders of each candidate (Sec. 3.2), at Accurate's
-    Cycles samples."""
+    Cycles samples; no step after the selection (the energy refit off)."""
     assert PRESETS["PAPER"] == dict(samples=6, trials=16, subset_fraction=0.5,
                                     kl_path="CYCLES",
-                                    kl_samples=PRESETS["ACCURATE"]["kl_samples"])
+                                    kl_samples=PRESETS["ACCURATE"]["kl_samples"],
+                                    keep_highlight_energy=False)
     s = scene.brdf
     s.preset = "PAPER"
     assert s.preset == "PAPER"  # its own assignments did not make it Custom
     assert (s.samples, s.trials, s.kl_path) == (6, 16, "CYCLES")
     assert s.subset_fraction == pytest.approx(0.5)
     assert s.kl_samples == PRESETS["ACCURATE"]["kl_samples"]
+    assert props_module.pipeline_settings(s).refine == "none"
 
 
 def test_paper_preset_with_the_fast_selection_is_custom(scene):

@@ -194,10 +194,18 @@ def test_job_sampler_reaches_the_pipeline(scene):
 
 
 def test_job_refine_to_photos_reaches_the_pipeline(scene):
-    assert props.pipeline_settings(scene.brdf).refine == "none"  # the default
+    assert props.pipeline_settings(scene.brdf).refine == "energy"  # the default
     job_module.apply(_job(scene, {"refine_to_photos": True}), scene)
     assert props.pipeline_settings(scene.brdf).refine == "photo"
     assert props.settings_dict(scene.brdf)["refine_to_photos"] is True
+
+
+def test_job_keep_highlight_energy_reaches_the_pipeline(scene):
+    assert scene.brdf.keep_highlight_energy is True  # Balanced's
+    job_module.apply(_job(scene, {"keep_highlight_energy": False}), scene)
+    assert props.pipeline_settings(scene.brdf).refine == "none"
+    assert props.settings_dict(scene.brdf)["keep_highlight_energy"] is False
+    assert scene.brdf.preset == "CUSTOM"  # off a preset's value
 
 
 def test_job_texture_settings_are_applied_and_checked(scene):

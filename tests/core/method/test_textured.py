@@ -32,17 +32,25 @@ def scene_inputs(spec, texture, *, with_uv=True):
 @pytest.fixture(scope="module", params=["heldout_lambert_grey", "heldout_glossy_plastic"])
 def runs(request, default_basis):
     """Per material: the truth, the untextured capture's table, the method on the
-    textured photos as they are, and the textured reconstruction."""
+    textured photos as they are, and the textured reconstruction, with the default
+    settings (the energy refit on) and, under ``"trials"``, the same three without
+    the refit (the chosen trial as it is)."""
     spec = SPECS[request.param]
     tex = synthetic.patch_texture(SHAPE)
-    untextured = pipeline.run(default_basis, scene_inputs(spec, np.ones_like(tex)), SETTINGS)
     inputs = scene_inputs(spec, tex)
     digests = [hashlib.sha256(p.photo.tobytes()).hexdigest() for p in inputs]
-    naive = pipeline.run(default_basis, inputs, SETTINGS)
-    result = textured.run(default_basis, inputs, SETTINGS, TEXTURE)
+
+    def three(settings):
+        untextured = pipeline.run(default_basis, scene_inputs(spec, np.ones_like(tex)),
+                                  settings)
+        naive = pipeline.run(default_basis, inputs, settings)
+        result = textured.run(default_basis, inputs, settings, TEXTURE)
+        return dict(untextured=untextured.regions[0].table, naive=naive.regions[0].table,
+                    result=result)
+
     return dict(name=request.param, truth=database.make_table(spec), texture=tex, inputs=inputs,
-                digests=digests, untextured=untextured.regions[0].table,
-                naive=naive.regions[0].table, result=result)
+                digests=digests, **three(SETTINGS),
+                trials=three(dataclasses.replace(SETTINGS, refine="none")))
 
 
 def test_the_albedo_map_of_a_textured_scene_is_recovered(runs):
@@ -59,13 +67,33 @@ def test_the_albedo_map_of_a_textured_scene_is_recovered(runs):
 
 def test_the_shared_shape_is_near_the_untextured_capture(runs):
     """The textured photos as they are mix the texture into the shape; the shared
-    shape comes back near the untextured capture's (measured: Lambert 0.26 naive,
-    0.03 untextured, 0.04-0.05 textured; glossy plastic 0.32, 0.09, 0.07-0.12)."""
-    err = {k: metrics.sphere_error(runs[k], runs["truth"])
+    shape comes back near the untextured capture's (the chosen trials, no refit;
+    measured: Lambert 0.25 naive, 0.03 untextured, 0.07 textured; glossy plastic
+    0.32, 0.09, 0.12)."""
+    trials = runs["trials"]
+    err = {k: metrics.sphere_error(trials[k], runs["truth"])
            for k in ("untextured", "naive")}
-    shared = metrics.sphere_error(runs["result"].result.regions[0].table, runs["truth"])
+    shared = metrics.sphere_error(trials["result"].result.regions[0].table, runs["truth"])
     assert shared < 0.5 * err["naive"]
     assert shared <= err["untextured"] + 0.05
+    assert np.isfinite(trials["result"].result.regions[0].table).all()
+
+
+def test_keeping_the_energy_does_not_spoil_the_shared_shape(runs):
+    """With the energy refit (the default) none of the three comes out worse than
+    the chosen trial, and the shared shape stays better than the naive one. The
+    refit acts only where a trial misses the photos' energy by more than 5 %
+    (measured 2026-12-04: the naive Lambert, 0.247 to 0.173; the untextured and
+    shared shapes keep their trials: Lambert 0.030 and 0.072, glossy plastic 0.086
+    and 0.121)."""
+    truth = runs["truth"]
+    for key in ("untextured", "naive"):
+        assert (metrics.sphere_error(runs[key], truth)
+                <= metrics.sphere_error(runs["trials"][key], truth) + 1e-12)
+    shared = metrics.sphere_error(runs["result"].result.regions[0].table, truth)
+    assert shared <= metrics.sphere_error(
+        runs["trials"]["result"].result.regions[0].table, truth) + 1e-12
+    assert shared < metrics.sphere_error(runs["naive"], truth)
     assert np.isfinite(runs["result"].result.regions[0].table).all()
 
 
