@@ -153,11 +153,14 @@ class RegionResult:
     refinement: with a refinement on, its ``method``, the chosen ``trial``, and the
     chosen trial's relative RMSE against the observed pixels and its energy ratio
     (``refine.energy_ratio``: predicted over photographed radiance, summed over
-    them) ``before`` and ``after`` the refit (empty when off). The energy refit
-    also records ``normal_noise_deg`` (``refine.normal_noise`` over the region),
-    and ``skipped``, one sentence, where the chosen trial is kept: that noise is
-    above ``refine.MAX_NORMAL_NOISE_DEG``, or the trial's energy ratio is within
-    ``refine.ENERGY_TOLERANCE`` of 1 (nothing to give back).
+    them) ``before`` and ``after`` the refit (empty when off), and the chosen
+    trial's ratio per photo, ``energy_per_photo`` (``refine.energy_ratios``). The
+    energy refit also records ``normal_noise_deg`` (``refine.normal_noise`` over
+    the region), and ``skipped``, one sentence, where the chosen trial is kept:
+    that noise is above ``refine.MAX_NORMAL_NOISE_DEG``, the trial's energy ratio
+    is within ``refine.ENERGY_TOLERANCE`` of 1 (nothing to give back), or the
+    photos' ratios scatter by more than their mean misses 1
+    (``refine.energy_agreement``: no table meets every photo's sum).
     refine_inputs: what :func:`refine_chosen` needs to refit another winner (the
     Cycles path's); None when the refinement is off.
     """
@@ -366,22 +369,31 @@ def refine_chosen(result: RegionResult) -> None:
     method, basis, observed, trusted, options = result.refine_inputs
     t0 = time.perf_counter()
     start = result.candidates.reconstructions[result.winner]
-    noise = {k: v for k, v in result.refinement.items() if k == "normal_noise_deg"}
+    recorded = {k: v for k, v in result.refinement.items() if k == "normal_noise_deg"}
     energy = refine.energy_ratio(start, observed)
+    ratios = refine.energy_ratios(start, observed)
+    shortfall, spread = refine.energy_agreement(ratios)
+    recorded["energy_per_photo"] = [float(r) for r in ratios]
+    skipped = None
     if method == "energy" and abs(energy - 1.0) <= refine.ENERGY_TOLERANCE:
-        result.table = start.table  # nothing to give back
-        result.refinement = {
-            **noise, "method": method, "trial": int(result.winner), "energy_before": energy,
-            "skipped": (f"the chosen trial's radiance is already within "
-                        f"{100 * refine.ENERGY_TOLERANCE:g} % of the photos' "
-                        f"({energy:.3f} of it), so it was kept as it is")}
+        skipped = (f"the chosen trial's radiance is already within "
+                   f"{100 * refine.ENERGY_TOLERANCE:g} % of the photos' "
+                   f"({energy:.3f} of it), so it was kept as it is")
+    elif method == "energy" and abs(shortfall) <= spread:
+        skipped = (f"the photos disagree on the chosen trial's energy (each photo's "
+                   f"ratio {', '.join(f'{r:.2f}' for r in ratios)}) by more than they "
+                   "miss it together, so it was kept as it is")
+    if skipped:
+        result.table = start.table  # nothing the photos agree on to give back
+        result.refinement = {**recorded, "method": method, "trial": int(result.winner),
+                             "energy_before": energy, "skipped": skipped}
         result.timings["refinement"] = time.perf_counter() - t0
         return
     fit = refine.energy_consistent if method == "energy" else refine.photo_consistent
     refined = fit(basis, start, observed, trusted, **options)
     result.table = refined.table
     result.refinement = {
-        **noise, "method": method, "trial": int(result.winner),
+        **recorded, "method": method, "trial": int(result.winner),
         "before": refine.relative_rmse(start, observed),
         "after": refine.relative_rmse(refined, observed),
         "energy_before": energy, "energy_after": refine.energy_ratio(refined, observed)}

@@ -6,10 +6,13 @@ on the scan, summed over each photo, is the photo's sum, with no pixel brighter
 than the brightest photographed and each photo's peak bounded by Eq. (2). A
 highlight's sum hardly depends on where wrong normals put its pixels, so this
 keeps the highlights a blunted scan loses (issue 15). It is skipped where the
-trial already holds the photos' energy (:data:`ENERGY_TOLERANCE`) and where the
-scan's normals are noisy from pixel to pixel (:func:`normal_noise`,
-:data:`MAX_NORMAL_NOISE_DEG`). Measured in ``bench/photo_bench.py``
-(docs/results.md).
+trial already holds the photos' energy (:data:`ENERGY_TOLERANCE`), where the
+photos disagree among themselves on the trial's energy by more than they
+jointly miss it (:func:`energy_agreement`: a scan whose shadows or shape put a
+different share of each photo's light where the table is read, so no table
+meets every sum) and where the scan's normals are noisy from pixel to pixel
+(:func:`normal_noise`, :data:`MAX_NORMAL_NOISE_DEG`). Measured in
+``bench/photo_bench.py`` (docs/results.md).
 
 **Every pixel** (:func:`photo_consistent`, setting ``refine_to_photos``, off):
 
@@ -395,6 +398,36 @@ def normal_noise(normals, masks) -> float:
             angles.append(np.degrees(np.arccos(cos)))
     angles = np.concatenate(angles) if angles else np.zeros(0)
     return float(np.median(angles)) if len(angles) else 0.0
+
+
+def energy_ratios(rec: Reconstruction, samples: Samples) -> np.ndarray:
+    """Each photo's radiance as ``rec`` predicts it on the scan, summed over that
+    photo's ``samples`` and the three channels, over the photo's own sum: (P,)
+    float64, one per photo (``samples.view``, ascending) whose pixels sum above 0;
+    1 = the photo's energy kept. A trial predicting nothing gives 0."""
+    rho = rec.rho_at(merl.linear_index(samples.cells))
+    cos_l = np.maximum(np.einsum("ij,ij->i", samples.n, samples.l), 0.0)
+    pred = np.sum(rho * np.asarray(samples.irradiance) * cos_l[:, None], axis=1)
+    seen = np.sum(np.asarray(samples.radiance, dtype=np.float64), axis=1)
+    groups = np.unique(np.asarray(samples.view), return_inverse=True)[1].ravel()
+    num = np.bincount(groups, weights=pred)
+    den = np.bincount(groups, weights=seen)
+    keep = den > 0
+    return num[keep] / den[keep]
+
+
+def energy_agreement(ratios) -> tuple[float, float]:
+    """How far a trial misses the photos' energy, and how far the photos agree on it:
+    from the per-photo ratios (P,) of :func:`energy_ratios`, the mean of their
+    logarithms (0 = kept; -1 = e^-1 of the energy) and their standard deviation
+    (ddof 1; 0 for fewer than two photos). Ratios are held in [1e-6, 1e6] so a
+    trial predicting nothing stays finite. Returns (shortfall, spread), natural log
+    units."""
+    logs = np.log(np.clip(np.asarray(ratios, dtype=np.float64), 1e-6, 1e6))
+    if len(logs) == 0:
+        return 0.0, 0.0
+    spread = float(np.std(logs, ddof=1)) if len(logs) > 1 else 0.0
+    return float(np.mean(logs)), spread
 
 
 def energy_ratio(rec: Reconstruction, samples: Samples) -> float:
