@@ -25,7 +25,9 @@ the capture's light against the input photos (relative RMSE over the region's
 pixels of all photos; ``self_consistency_reliable`` over the run's reliable
 pixels only, the ones the method trusts); ``energy``, the chosen table's radiance summed over the
 photos on the true geometry over the true table's (1 = right, 0.5 = half the
-energy); ``seconds`` per region (``pipeline_reliable_trials_selection``'s share:
+energy); per scan, the true table's own self-consistency (mode ``truth``: what the
+scan's normals alone cost, the floor no table can beat there); ``seconds`` per
+region (``pipeline_reliable_trials_selection``'s share:
 reliable, sampling, trials, KL, expansion). Summaries per object, scan and mode:
 medians over materials (of the per-material median over seeds), the seed spread
 (median over materials of (max - min) / median over seeds) and the share of
@@ -62,6 +64,9 @@ MODES = {
 PAIRED = {"balanced": ("trials", "refined")}
 EXACT_MODES = ("balanced", "trials", "refined")
 SCANS = ("scan", "exact")
+# the true table itself re-rendered on each scan: the self-consistency no table can
+# beat on that scan (its normals' share of the error), in the summary as "<scan>/truth"
+TRUTH = "truth"
 
 
 def exact_scan(arrays: dict) -> dict:
@@ -91,6 +96,9 @@ def main(argv=None) -> int:
             for seed in range(seeds):
                 for scan, arrays in scans.items():
                     inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
+                    rows.append(dict(object=obj, material=name, measured=common.is_measured(name),
+                                     seed=seed, scan=scan, mode=TRUTH,
+                                     **_scores(np.nan_to_num(truth), truth, arrays, inputs)))
                     for mode in MODES if scan == "scan" else EXACT_MODES:
                         if any(mode in pair for pair in PAIRED.values()):
                             continue  # scored in its pair's run
@@ -131,7 +139,8 @@ def _run(obj, name, seed, scan, mode, B, arrays, inputs, truth) -> list[dict]:
     rows.append(dict(base, mode="trials", **_scores(start.expand(), truth, arrays, inputs,
                                                        reliable_px),
                      seconds=seconds - refit_s, wall=wall - refit_s))
-    _, basis, observed, trusted, _ = region.refine_inputs
+    inp = region.refine_inputs
+    basis, observed, trusted = inp.basis, inp.observed, inp.trusted
     t0 = time.perf_counter()
     photo = refine.photo_consistent(basis, start, observed, trusted)
     photo_s = time.perf_counter() - t0
@@ -214,6 +223,12 @@ def _summary(rows, objects) -> dict:
                                                   or floors["balanced"]),
                     "materials": len(sphere)}
                 out[obj][f"{scan}/{mode}"] = entry
+            floor = _per_material(rows, obj, scan, TRUTH, "self_consistency")
+            if floor:
+                out[obj][f"{scan}/{TRUTH}"] = {
+                    "self_consistency": float(np.median(list(floor.values()))),
+                    "self_consistency_max": float(max(floor.values())),
+                    "materials": len(floor)}
     return out
 
 
@@ -245,7 +260,7 @@ def plot(doc: dict, path) -> None:
     objects = list(doc["summary"])
     fig, axes = plt.subplots(1, len(objects), figsize=(6 * len(objects), 5), squeeze=False)
     for ax, obj in zip(axes[0], objects, strict=True):
-        runs = [r for r in doc["runs"] if r["object"] == obj]
+        runs = [r for r in doc["runs"] if r["object"] == obj and r["mode"] != TRUTH]
         keys = sorted({(r["scan"], r["mode"]) for r in runs}, key=lambda k: (k[0] != "scan",
                                                                           k[1]))
         data = [[r["sphere"] for r in runs if (r["scan"], r["mode"]) == k] for k in keys]

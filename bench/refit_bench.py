@@ -96,7 +96,8 @@ def _run(arrays, truth, B, seed, sigmas) -> dict:
     inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
     settings = pipeline.PipelineSettings(seed=seed, n_samples=20, n_trials=16, refine="photo")
     region = pipeline.run(B, inputs, settings, regions=[0]).regions[0]
-    _, basis, observed, trusted, _ = region.refine_inputs
+    inp = region.refine_inputs
+    basis, observed, trusted = inp.basis, inp.observed, inp.trusted
     start = region.candidates.reconstructions[region.winner]
     # the trial's KL is the selection's (the bins depend on the photos alone); the
     # refit is the pipeline's own (region.table), scored on the same views

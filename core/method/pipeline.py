@@ -30,6 +30,7 @@ from ..brdf.basis import Basis
 from ..progress import Cancelled as Cancelled  # re-exported: what run() raises
 from ..progress import check
 from . import observations, refine, reliable, sampling, selection
+from .observations import Samples
 
 # What follows the KL selection (``refine``): nothing (the paper's method), the
 # chosen trial refitted to each photo's radiance sum ("energy", the default:
@@ -126,6 +127,22 @@ class CandidateTables(Sequence):
         return self.reconstructions[t].expand()
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class RefineInputs:
+    """What :func:`refine_chosen` needs to refit a region's chosen trial.
+
+    method: "energy" or "photo" (:data:`REFINEMENTS` but "none"). basis: the run's
+    Basis. observed: the region's observed samples after the up-front removals
+    (``Samples``, N). trusted: the reliable region's samples (M). options: keyword
+    arguments of the refit (``peak_bound`` for the energy refit)."""
+
+    method: str
+    basis: Basis
+    observed: Samples
+    trusted: Samples
+    options: dict
+
+
 @dataclasses.dataclass(eq=False)
 class RegionResult:
     """Outcome for one region.
@@ -180,7 +197,7 @@ class RegionResult:
     selection: dict = dataclasses.field(default_factory=lambda: {"path": "fast"})
     timings: dict = dataclasses.field(default_factory=dict)
     refinement: dict = dataclasses.field(default_factory=dict)
-    refine_inputs: tuple | None = dataclasses.field(default=None, repr=False)
+    refine_inputs: RefineInputs | None = dataclasses.field(default=None, repr=False)
 
     def summary(self) -> dict:
         """JSON-friendly summary (no arrays) for ``report.json``."""
@@ -349,7 +366,7 @@ def run_region(
     if method != "none":
         # Eq. (2)'s bound on the peak where Eq. (2) holds (not with the peak clipped)
         options = {"peak_bound": rel.use_brightest} if method == "energy" else {}
-        result.refine_inputs = (method, basis, observed, cand, options)
+        result.refine_inputs = RefineInputs(method, basis, observed, cand, options)
         check(cancelled)
         if progress:
             progress(1.0, f"region {region}: refining the chosen table "
@@ -366,7 +383,8 @@ def refine_chosen(result: RegionResult) -> None:
     (``refine_inputs`` None)."""
     if result.refine_inputs is None:
         return
-    method, basis, observed, trusted, options = result.refine_inputs
+    inp = result.refine_inputs
+    method, basis, observed, trusted = inp.method, inp.basis, inp.observed, inp.trusted
     t0 = time.perf_counter()
     start = result.candidates.reconstructions[result.winner]
     recorded = {k: v for k, v in result.refinement.items() if k == "normal_noise_deg"}
@@ -390,7 +408,7 @@ def refine_chosen(result: RegionResult) -> None:
         result.timings["refinement"] = time.perf_counter() - t0
         return
     fit = refine.energy_consistent if method == "energy" else refine.photo_consistent
-    refined = fit(basis, start, observed, trusted, **options)
+    refined = fit(basis, start, observed, trusted, **inp.options)
     result.table = refined.table
     result.refinement = {
         **recorded, "method": method, "trial": int(result.winner),

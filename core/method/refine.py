@@ -315,7 +315,7 @@ def energy_consistent(
             w_x = _huber(r_x)
             s2_x = max(float(np.sum(w_x * r_x**2) / max(np.sum(w_x), _TINY))
                        if len(r_x) else 1.0, 1e-8)
-            J = member @ (f[:, None] * Q)  # (P, k) the sums' Jacobian
+            J = (member * f) @ Q  # (P, k) the sums' Jacobian, without an (N, k) temporary
             H = (J.T / s2_e) @ J + (Qt.T * w_x) @ Qt / s2_x + np.eye(k) / tau2
             grad = (J.T @ ((member @ pred - sums) / s2_e) + Qt.T @ (w_x * r_x) / s2_x
                     + (c - c0) / tau2)

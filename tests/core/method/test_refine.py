@@ -229,7 +229,7 @@ def test_the_energy_per_photo_follows_each_photo(default_basis, heldout_tables):
     finite for a trial that predicts nothing and for a single photo."""
     region = pipeline.run(default_basis, _inputs(heldout_tables["heldout_gold_medium"]),
                           SETTINGS).regions[0]
-    _, _, observed, _, _ = region.refine_inputs
+    observed = region.refine_inputs.observed
     trial = region.candidates.reconstructions[region.winner]
     before = refine.energy_ratios(trial, observed)
     assert before.shape == (3,) and np.all(np.isfinite(before)) and np.all(before > 0)
@@ -281,7 +281,7 @@ def test_a_new_winner_is_refitted(default_basis, heldout_tables):
     region.winner = other
     pipeline.refine_chosen(region)
     assert region.refinement["trial"] == other
-    samples, trusted = region.refine_inputs[2:4]
+    samples, trusted = region.refine_inputs.observed, region.refine_inputs.trusted
     again = refine.photo_consistent(default_basis, region.candidates.reconstructions[other],
                                     samples, trusted)
     assert np.array_equal(region.table, again.table)
