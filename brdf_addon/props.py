@@ -303,8 +303,8 @@ class BRDFSettings(PropertyGroup):
         "reflects, summed over each photo, matches the photo's, with no pixel brighter "
         "than the brightest photographed. On blunted scans it keeps the highlights the "
         "trials lose (median sphere error 0.40 to 0.28 on the bunny, 0.67 to 0.53 on "
-        "Spot); kept as it is where the trial already holds the photos' energy; off in "
-        "the paper's method")
+        "Spot); kept as it is where the trial already holds the photos' energy or the "
+        "photos disagree on it; off in the paper's method")
     refine_to_photos: BoolProperty(
         name="Refine to Photos", default=False,
         description="After the selection, refit the chosen table to every observed pixel "

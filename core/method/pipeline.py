@@ -177,7 +177,10 @@ class RegionResult:
     that noise is above ``refine.MAX_NORMAL_NOISE_DEG``, the trial's energy ratio
     is within ``refine.ENERGY_TOLERANCE`` of 1 (nothing to give back), or the
     photos' ratios scatter by more than their mean misses 1
-    (``refine.energy_agreement``: no table meets every photo's sum).
+    (``refine.energy_agreement``) and the refit's ratios
+    (``energy_per_photo_after``) still miss them by more than
+    ``refine.ENERGY_RECONCILED`` (``refine.energy_misfit``: no table meets every
+    photo's sum).
     refine_inputs: what :func:`refine_chosen` needs to refit another winner (the
     Cycles path's); None when the refinement is off.
     """
@@ -397,18 +400,25 @@ def refine_chosen(result: RegionResult) -> None:
         skipped = (f"the chosen trial's radiance is already within "
                    f"{100 * refine.ENERGY_TOLERANCE:g} % of the photos' "
                    f"({energy:.3f} of it), so it was kept as it is")
-    elif method == "energy" and abs(shortfall) <= spread:
-        skipped = (f"the photos disagree on the chosen trial's energy (each photo's "
-                   f"ratio {', '.join(f'{r:.2f}' for r in ratios)}) by more than they "
-                   "miss it together, so it was kept as it is")
+    if not skipped:
+        fit = refine.energy_consistent if method == "energy" else refine.photo_consistent
+        refined = fit(basis, start, observed, trusted, **inp.options)
+        after = refine.energy_ratios(refined, observed)
+        recorded["energy_per_photo_after"] = [float(r) for r in after]
+        misfit = refine.energy_misfit(after)
+        if (method == "energy" and abs(shortfall) <= spread
+                and misfit > refine.ENERGY_RECONCILED):
+            skipped = (
+                "the photos disagree on the chosen trial's energy (each photo's ratio "
+                f"{', '.join(f'{r:.2f}' for r in ratios)}) by more than they miss it "
+                "together, and the refit does not reconcile them (ratios after "
+                f"{', '.join(f'{r:.2f}' for r in after)}), so the trial was kept as it is")
     if skipped:
         result.table = start.table  # nothing the photos agree on to give back
         result.refinement = {**recorded, "method": method, "trial": int(result.winner),
                              "energy_before": energy, "skipped": skipped}
         result.timings["refinement"] = time.perf_counter() - t0
         return
-    fit = refine.energy_consistent if method == "energy" else refine.photo_consistent
-    refined = fit(basis, start, observed, trusted, **inp.options)
     result.table = refined.table
     result.refinement = {
         **recorded, "method": method, "trial": int(result.winner),
