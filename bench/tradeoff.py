@@ -128,7 +128,7 @@ CONSTRAINTS = {
     "all": dict(use_curvature=True, use_monotonicity=True, use_brightest=True),
 }
 STAGES = ("gbuffers", "observations", "reliable", "sampling", "reconstruction", "selection",
-          "expansion", "bake")
+          "expansion", "refinement", "bake")
 
 
 def _basis(components: int, material: str):
@@ -348,7 +348,8 @@ def summarise(rows: list, configs: list) -> list:
             "median_trial_sphere_error": med("median_trial_sphere_error"),
             "total_s": med("total_s"), "peak_rss_mb": med("peak_rss_mb"),
             # rows from before the trials were kept as coefficients (2026-12-02, 43dc45d)
-            # lack "expansion": their reconstruction expanded every trial's table
+            # lack "expansion": their reconstruction expanded every trial's table; rows
+            # from before 2026-12-04 lack "refinement" (no refit, or its time not counted)
             "timings_s": {s: float(np.median([r["timings_s"].get(s, 0.0) for r in mine]))
                           for s in STAGES},
             "per_material": {m: float(np.median([r["sphere_error"] for r in mine

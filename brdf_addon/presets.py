@@ -53,14 +53,14 @@ PRESETS = {
 }
 
 # One line per preset for the panel and tooltips: what it costs and buys, as measured
-# (bench/results/tradeoff.json, "presets", 2026-12-03, `bench/tradeoff.py --part presets`
+# (bench/results/tradeoff.json, "presets", 2026-12-04, `bench/tradeoff.py --part presets`
 # run on every entry of PRESETS, the default measured basis and the pipeline's default
 # condition-number sampler: bunny capture, 3 photos of 240 x 180, wall seconds per
 # region on a 2-core machine shared with other jobs, median rendered-sphere error over
 # 2 analytic and 2 measured held-out materials x 2 seeds; docs/results.md).
 HINTS = {
-    "FAST": "20 samples x 4 trials, numpy selection: about 2 s, error 0.30",
-    "BALANCED": "20 samples x 16 trials, numpy selection: about 3 s, error 0.28",
-    "ACCURATE": "20 samples x 16 trials, Cycles selection: about 18 s, error 0.28",
-    "PAPER": "The paper's method: 6 samples x 16 trials, Cycles selection: about 17 s, error 0.27",
+    "FAST": "20 samples x 4 trials, numpy selection, energy refit: about 1 s, error 0.24",
+    "BALANCED": "20 samples x 16 trials, numpy selection, energy refit: about 2 s, error 0.22",
+    "ACCURATE": "20 samples x 16 trials, Cycles selection, energy refit: about 5 s, error 0.22",
+    "PAPER": "The paper's method: 6 samples x 16 trials, Cycles selection: about 5 s, error 0.27",
 }
