@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import pathlib
 import tempfile
 import time
@@ -79,7 +80,9 @@ def gbuffers(resolution=(240, 180), n_views: int = 6, lit_views=(0, 2, 4), light
     out = _render(resolution, n_views, lit_views, light, seed, scan_options, mesh, uv)
     if cache:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp.npz")
+        # a name of this process's own: two benches rendering the same capture at once
+        # each write their copy and the last rename wins (the same arrays)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
         np.savez_compressed(tmp, **{k: v for k, v in out.items() if k != "render_s"})
         tmp.replace(path)
     return out
