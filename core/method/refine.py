@@ -271,9 +271,9 @@ def energy_consistent(
             raise ValueError(f"{name} must be a finite number > 0, got {value}")
     coefs = _start_coefficients(basis, start, samples, iterations)
     k = basis.n_components
-    weight, m_eps = _mapping_f64(basis)
+    weight_all, m_eps_all = _mapping_f64(basis)
     lo, hi = basis.x_range
-    Q, mean, weight, m_eps, shading = _lookups(basis, weight, m_eps, samples.cells,
+    Q, mean, weight, m_eps, shading = _lookups(basis, weight_all, m_eps_all, samples.cells,
                                                samples.n, samples)
     radiance = np.asarray(samples.radiance, dtype=np.float64)
     groups = np.unique(np.asarray(samples.view), return_inverse=True)[1].ravel()
@@ -293,8 +293,8 @@ def energy_consistent(
         rows = basis.source_rows(merl.linear_index(peak_cells))
         Q = np.concatenate([Q, basis.Q[rows].astype(np.float64)])
         mean = np.concatenate([mean, basis.mean[rows].astype(np.float64)])
-        weight = np.concatenate([weight, _mapping_f64(basis)[0][rows]])
-        m_eps = np.concatenate([m_eps, _mapping_f64(basis)[1][rows]])
+        weight = np.concatenate([weight, weight_all[rows]])
+        m_eps = np.concatenate([m_eps, m_eps_all[rows]])
         shading = np.concatenate([shading, irradiance[bright] * np.cos(theta_d)[:, None]])
     member = np.zeros((n_photos, len(Q)))
     member[groups, np.arange(len(groups))] = 1.0
@@ -413,9 +413,7 @@ def energy_ratios(rec: Reconstruction, samples: Samples) -> np.ndarray:
     photo's ``samples`` and the three channels, over the photo's own sum: (P,)
     float64, one per photo (``samples.view``, ascending) whose pixels sum above 0;
     1 = the photo's energy kept. A trial predicting nothing gives 0."""
-    rho = rec.rho_at(merl.linear_index(samples.cells))
-    cos_l = np.maximum(np.einsum("ij,ij->i", samples.n, samples.l), 0.0)
-    pred = np.sum(rho * np.asarray(samples.irradiance) * cos_l[:, None], axis=1)
+    pred = np.sum(_predicted_radiance(rec, samples), axis=1)
     seen = np.sum(np.asarray(samples.radiance, dtype=np.float64), axis=1)
     groups = np.unique(np.asarray(samples.view), return_inverse=True)[1].ravel()
     num = np.bincount(groups, weights=pred)
@@ -431,7 +429,7 @@ def energy_agreement(ratios) -> tuple[float, float]:
     (ddof 1; 0 for fewer than two photos). Ratios are held in [1e-6, 1e6] so a
     trial predicting nothing stays finite. Returns (shortfall, spread), natural log
     units."""
-    logs = np.log(np.clip(np.asarray(ratios, dtype=np.float64), 1e-6, 1e6))
+    logs = _log_ratios(ratios)
     if len(logs) == 0:
         return 0.0, 0.0
     spread = float(np.std(logs, ddof=1)) if len(logs) > 1 else 0.0
@@ -443,17 +441,28 @@ def energy_misfit(ratios) -> float:
     mean square of the logs of the per-photo ratios (P,) of :func:`energy_ratios`
     (0 = every photo's sum met; held in [1e-6, 1e6] as :func:`energy_agreement`
     does); 0.0 for no photo."""
-    logs = np.log(np.clip(np.asarray(ratios, dtype=np.float64), 1e-6, 1e6))
+    logs = _log_ratios(ratios)
     return float(np.sqrt(np.mean(logs**2))) if len(logs) else 0.0
+
+
+def _log_ratios(ratios) -> np.ndarray:
+    """Natural logs (P,) float64 of energy ratios held in [1e-6, 1e6]."""
+    return np.log(np.clip(np.asarray(ratios, dtype=np.float64), 1e-6, 1e6))
+
+
+def _predicted_radiance(rec: Reconstruction, samples: Samples) -> np.ndarray:
+    """The radiance (N, 3) ``rec`` predicts at each of ``samples`` on the scan:
+    ``rho E max(n.l, 0)``, W/(m^2 sr)."""
+    rho = rec.rho_at(merl.linear_index(samples.cells))
+    cos_l = np.maximum(np.einsum("ij,ij->i", samples.n, samples.l), 0.0)
+    return rho * np.asarray(samples.irradiance) * cos_l[:, None]
 
 
 def energy_ratio(rec: Reconstruction, samples: Samples) -> float:
     """The radiance ``rec`` predicts summed over ``samples`` (N,) over the photos'
     sum there, mean over the channels (1 = the photos' energy kept); NaN if the
     photos sum to 0."""
-    rho = rec.rho_at(merl.linear_index(samples.cells))
-    cos_l = np.maximum(np.einsum("ij,ij->i", samples.n, samples.l), 0.0)
-    pred = np.sum(rho * np.asarray(samples.irradiance) * cos_l[:, None], axis=0)
+    pred = np.sum(_predicted_radiance(rec, samples), axis=0)
     den = np.sum(np.asarray(samples.radiance, dtype=np.float64), axis=0)
     return float(np.mean(pred / den)) if np.all(den > 0) else float("nan")
 
@@ -537,8 +546,6 @@ def relative_rmse(rec: Reconstruction, samples: Samples) -> float:
     """Relative RMSE of the radiance ``rec`` predicts at ``samples`` (N,) against
     their photos' values: sqrt(sum (L(c) - L)^2 / sum L^2), dimensionless; NaN if
     every value is 0."""
-    rho = rec.rho_at(merl.linear_index(samples.cells))
-    cos_l = np.maximum(np.einsum("ij,ij->i", samples.n, samples.l), 0.0)
-    pred = rho * np.asarray(samples.irradiance) * cos_l[:, None]
+    pred = _predicted_radiance(rec, samples)
     den = float(np.sum(np.asarray(samples.radiance, dtype=np.float64) ** 2))
     return float(np.sqrt(np.sum((pred - samples.radiance) ** 2) / den)) if den > 0 else float("nan")
