@@ -311,7 +311,12 @@ def run_case(B, case: Case, arrays: dict, settings: pipeline.PipelineSettings) -
                       trial_condition={"median": float(np.median(cond)),
                                        "max": float(np.max(cond))},
                       trial_samples_used=[t["samples_used"] for t in r.trials],
-                      errors=errors(r.table, truth, truth_spheres))
+                      errors=errors(r.table, truth, truth_spheres),
+                      # what followed the KL (the energy refit by default), and the
+                      # chosen and the true table's largest cell (1/sr; at theta_h = 0
+                      # or towards grazing theta_d, where no photo may look)
+                      refinement=r.refinement, table_peak=float(np.nanmax(r.table)),
+                      truth_peak=float(np.nanmax(truth)))
         # every candidate against the truth: did the KL pick the best one?
         cand_err = [metrics.relative_rmse(spheres(c.astype(np.float64)), truth_spheres)
                     for c in r.candidates]

@@ -393,7 +393,6 @@ def refine_chosen(result: RegionResult) -> None:
     recorded = {k: v for k, v in result.refinement.items() if k == "normal_noise_deg"}
     energy = refine.energy_ratio(start, observed)
     ratios = refine.energy_ratios(start, observed)
-    shortfall, spread = refine.energy_agreement(ratios)
     recorded["energy_per_photo"] = [float(r) for r in ratios]
     skipped = None
     if method == "energy" and abs(energy - 1.0) <= refine.ENERGY_TOLERANCE:
@@ -405,9 +404,7 @@ def refine_chosen(result: RegionResult) -> None:
         refined = fit(basis, start, observed, trusted, **inp.options)
         after = refine.energy_ratios(refined, observed)
         recorded["energy_per_photo_after"] = [float(r) for r in after]
-        misfit = refine.energy_misfit(after)
-        if (method == "energy" and abs(shortfall) <= spread
-                and misfit > refine.ENERGY_RECONCILED):
+        if method == "energy" and refine.photos_disagree_unreconciled(ratios, after):
             skipped = (
                 "the photos disagree on the chosen trial's energy (each photo's ratio "
                 f"{', '.join(f'{r:.2f}' for r in ratios)}) by more than they miss it "

@@ -369,11 +369,15 @@ def _peak_bounds(start: Reconstruction, cells, radiance, irradiance):
     for cell, value, e in zip(cells, np.asarray(radiance, np.float64),
                               np.asarray(irradiance, np.float64), strict=True):
         row = np.column_stack([np.zeros_like(d), d, np.full_like(d, cell[2])])
-        trial = np.maximum(start.rho_at(merl.linear_index(row)), _TINY)  # (90, 3)
+        trial = np.clip(start.rho_at(merl.linear_index(row)), _TINY, _UNBOUNDED)  # (90, 3)
         b = int(cell[1])
-        gain = np.maximum(1.0, value / (e * cos_d[b]) / trial[b])  # (3,)
+        # in logarithms, held below _UNBOUNDED: a trial far off the photos (peak near the
+        # float64 limit, or at _TINY under a bright pixel) cannot overflow
+        log_gain = np.maximum(0.0, np.log(np.maximum(value, _TINY) / (e * cos_d[b]))
+                              - np.log(trial[b]))  # (3,)
         out_cells.append(row)
-        out_top.append(trial * gain * e * cos_d[:, None])
+        out_top.append(np.exp(np.minimum(np.log(trial) + log_gain + np.log(e * cos_d[:, None]),
+                                         np.log(_UNBOUNDED))))
     return (np.concatenate(out_cells), np.concatenate(out_top),
             np.repeat(np.arange(len(cells)), len(d)))
 
@@ -443,6 +447,19 @@ def energy_misfit(ratios) -> float:
     does); 0.0 for no photo."""
     logs = _log_ratios(ratios)
     return float(np.sqrt(np.mean(logs**2))) if len(logs) else 0.0
+
+
+def photos_disagree_unreconciled(before, after) -> bool:
+    """Whether the energy refit must give way to the trial: the photos disagree on
+    the trial's energy (the spread of the per-photo log ratios ``before`` (P,),
+    :func:`energy_agreement`, is at least the size of their mean: the trial misses
+    each photo differently more than it misses them together) *and* the refit's
+    ratios ``after`` (P,) do not reconcile them (:func:`energy_misfit` above
+    ``ENERGY_RECONCILED``: no table in reach meets every photo's sum, so the refit
+    only splits the difference). Photos that agree, or a refit meeting every sum,
+    keep the refit."""
+    shortfall, spread = energy_agreement(before)
+    return abs(shortfall) <= spread and energy_misfit(after) > ENERGY_RECONCILED
 
 
 def _log_ratios(ratios) -> np.ndarray:
