@@ -310,6 +310,38 @@ def test_a_trial_far_off_the_photos_refits_without_overflow(default_basis, heldo
     assert abs(np.log(after)) < abs(np.log(before))
 
 
+def _rise(table):
+    """How far a table climbs with theta_h near its peak: the summed positive steps of
+    log rho from one theta_h bin to the next, theta_h bins 0-30, every 3rd theta_d,
+    phi_d 0/45/90/135 degrees (refine's ladder), over pairs of measured (finite,
+    positive) cells; 0 for a table falling with theta_h."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = np.log(table[:, :31, ::3, [0, 45, 90, 135]])
+    step = np.diff(x, axis=1)
+    return float(np.sum(np.maximum(step[np.isfinite(step)], 0.0)))
+
+
+@pytest.mark.parametrize("name", ["heldout_silver_mirror", "heldout_glossy_plastic",
+                                  "heldout_gold_medium"])
+def test_the_refit_keeps_the_peak_falling_with_theta_h(default_basis, heldout_tables, name):
+    """On the blunted scan the energy sums alone are met by a ring where the scan's
+    normals put the highlight (the table climbs with theta_h: measured 0.3 -> 353 for
+    the glossy plastic); the monotone term (the paper's own assumption, intensity
+    falling with n.h) keeps the refitted table at most half as climbing, while the
+    photos' energy is met as well as without it (within 3 %). The true tables hardly
+    climb (silver 3.1, at theta_d >= 60 degrees, where the shadowing ends its lobe)."""
+    assert _rise(heldout_tables[name]) < 5.0
+    region = pipeline.run(default_basis, _inputs(heldout_tables[name], exact=False),
+                          SETTINGS).regions[0]
+    start = region.candidates.reconstructions[region.winner]
+    observed, trusted = region.refine_inputs.observed, region.refine_inputs.trusted
+    free = refine.energy_consistent(default_basis, start, observed, trusted, monotone=False)
+    held = refine.energy_consistent(default_basis, start, observed, trusted)
+    assert _rise(held.table) < 0.5 * _rise(free.table)
+    assert abs(refine.energy_ratio(held, observed) - refine.energy_ratio(free, observed)) < 0.03
+    assert np.all(np.isfinite(held.table))
+
+
 def test_same_input_same_energy_refit(default_basis, heldout_tables):
     inputs = _inputs(heldout_tables["heldout_glossy_plastic"], exact=False)
     a = pipeline.run(default_basis, inputs, SETTINGS).regions[0].table

@@ -1,0 +1,198 @@
+"""Would a smooth, multi-view-consistent normal correction pay? Its upper bound (issue 15).
+Writes ``bench/results/normal_correction.json`` and ``normal_correction.png``.
+
+Run::
+
+    export BRDF_RECONSTRUCT_CACHE=/work/main/.cache
+    .venv/bin/python bench/normal_correction_bench.py           # about 15 minutes
+    .venv/bin/python bench/normal_correction_bench.py --quick   # 5 materials
+
+Issue 15 asks for the scan's normals to be refined from the lit photos "if
+measurement says it pays": a smooth correction, consistent across the views.
+Before building the estimator from the photos, this bench measures the best any
+such correction can do: the correction is fitted to the *true* normals (an
+oracle no capture has), and the photo pipeline then runs on the corrected scan.
+A correction estimated from three photos under one light can only do worse
+(a Lambertian pixel constrains one of a normal's two degrees of freedom).
+
+The correction: a field of small rotations ``omega(x)`` (radians, world frame)
+trilinear over a ``G^3`` grid spanning the scan's visible positions, so one
+surface point gets one correction in every view (multi-view consistent) and its
+smoothness is set by ``G``. A scan normal ``n`` becomes ``normalise(n + omega(x) x n)``.
+The nodes' rotations are the linear least-squares fit (``scipy.sparse.linalg.lsqr``,
+damping 1e-3) of ``omega(x) x n`` to ``t - n`` over the pixels the truth and
+the scan both cover (``t`` the true normal). G = 16 and 32 are the scan's
+smooth scales (the object has unit radius: nodes 0.13 and 0.065 apart).
+
+Scene and scoring are ``bench/photo_bench.py``'s: the blunted bunny and Spot
+(``bench/capture_arrays.py``), 3 lit photos with 1 % noise, the 12 analytic and 7
+measured held-out materials, each reconstructed with a basis without it, the
+Balanced settings (``PipelineSettings()`` defaults), seed 0. Per scan: the
+normals' angular error against the truth (median and 90th percentile, degrees),
+and per material the rendered-sphere error, the self-consistency and the energy.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+import capture_arrays
+import common
+import numpy as np
+import photo_bench
+import scipy.sparse as sp
+import scipy.sparse.linalg as spl
+
+from testkit import measured
+
+GRIDS = (16, 32)
+DAMPING = 1e-3
+
+
+def rotation_field(x, n, G: int, lo, hi) -> sp.csr_matrix:
+    """The (3N, 3 G^3) matrix taking the grid's node rotations to ``omega(x) x n``.
+
+    x: (N, 3) positions (scene units); n: (N, 3) unit normals; lo, hi: (3,) the grid's
+    corners. Trilinear weights; positions outside the box take its nearest face.
+    """
+    u = np.clip((x - lo) / (hi - lo), 0.0, 1.0) * (G - 1)
+    i0 = np.minimum(np.floor(u).astype(np.int64), G - 2)
+    f = u - i0
+    N = len(n)
+    # omega x n = -[n]_x omega: the cross-product matrix of n, negated
+    cross = np.zeros((N, 3, 3))
+    cross[:, 0, 1], cross[:, 0, 2] = n[:, 2], -n[:, 1]
+    cross[:, 1, 0], cross[:, 1, 2] = -n[:, 2], n[:, 0]
+    cross[:, 2, 0], cross[:, 2, 1] = n[:, 1], -n[:, 0]
+    corners = np.array([(a, b, c) for a in (0, 1) for b in (0, 1) for c in (0, 1)])
+    w = np.prod(np.where(corners[None], f[:, None], 1.0 - f[:, None]), axis=-1)  # (N, 8)
+    node = (((i0[:, None, 0] + corners[:, 0]) * G + i0[:, None, 1] + corners[:, 1]) * G
+            + i0[:, None, 2] + corners[:, 2])  # (N, 8)
+    rows = np.broadcast_to((3 * np.arange(N))[:, None, None, None]
+                           + np.arange(3)[None, None, :, None], (N, 8, 3, 3))
+    cols = np.broadcast_to(3 * node[:, :, None, None] + np.arange(3)[None, None, None, :],
+                           (N, 8, 3, 3))
+    vals = w[:, :, None, None] * cross[:, None]
+    return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())),
+                         shape=(3 * N, 3 * G ** 3))
+
+
+def oracle_corrected(arrays: dict, G: int) -> dict:
+    """The capture with its scan normals corrected by the grid-G rotation field fitted to
+    the true normals (the bound of any correction that smooth)."""
+    sn = arrays["scan_normal"]
+    seen = (arrays["scan_region"] >= 0) & np.all(np.isfinite(sn), axis=-1)
+    both = seen & arrays["truth_mask"] & np.all(np.isfinite(arrays["truth_normal"]), axis=-1)
+    x_all = arrays["scan_position"][seen].astype(np.float64)
+    lo, hi = x_all.min(axis=0) - 1e-6, x_all.max(axis=0) + 1e-6
+    n = sn[both].astype(np.float64)
+    t = arrays["truth_normal"][both].astype(np.float64)
+    A = rotation_field(arrays["scan_position"][both].astype(np.float64), n, G, lo, hi)
+    omega = spl.lsqr(A, (t - n).ravel(), damp=DAMPING, iter_lim=500)[0]
+    n_all = sn[seen].astype(np.float64)
+    fixed = n_all + (rotation_field(x_all, n_all, G, lo, hi) @ omega).reshape(-1, 3)
+    fixed /= np.linalg.norm(fixed, axis=-1, keepdims=True)
+    out = dict(arrays)
+    out["scan_normal"] = sn.copy()
+    out["scan_normal"][seen] = fixed.astype(sn.dtype)
+    return out
+
+
+def normal_error(arrays: dict) -> dict:
+    """Median and 90th percentile (degrees) of the scan normals' angle to the truth's."""
+    sn, tn = arrays["scan_normal"], arrays["truth_normal"]
+    both = ((arrays["scan_region"] >= 0) & arrays["truth_mask"]
+            & np.all(np.isfinite(sn), axis=-1) & np.all(np.isfinite(tn), axis=-1))
+    cos = np.sum(sn[both].astype(np.float64) * tn[both], axis=-1)
+    deg = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return {"median_deg": float(np.median(deg)), "p90_deg": float(np.percentile(deg, 90))}
+
+
+def main(argv=None) -> int:
+    args, objects = common.pipeline_bench_arguments(__doc__, argv, 1, "5 materials")
+    if args is None:
+        return objects
+    info = common.machine("the bound of a smooth normal correction, issue 15")
+    t_start = time.perf_counter()
+    names = common.pipeline_materials(args.quick)
+    rows, scans_info = [], {}
+    for obj in objects:
+        degraded = capture_arrays.gbuffers(mesh=None if obj == "bunny"
+                                           else measured.DATA / "spot.obj")
+        scans = {"scan": degraded}
+        scans.update({f"oracle_{G}": oracle_corrected(degraded, G) for G in GRIDS})
+        scans["exact"] = photo_bench.exact_scan(degraded)
+        scans_info[obj] = {k: normal_error(a) for k, a in scans.items()}
+        print(obj, json.dumps(scans_info[obj]), flush=True)
+        for name in names:
+            truth = common.heldout_table(name)
+            B = common.default_basis_without(name)
+            for seed in range(args.seeds):
+                for scan, arrays in scans.items():
+                    inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
+                    row = photo_bench._run(obj, name, seed, scan, "balanced", B, arrays,
+                                           inputs, truth)[0]
+                    rows.append({k: row[k] for k in ("object", "material", "measured", "seed",
+                                                     "scan", "sphere", "self_consistency",
+                                                     "energy")})
+                print(f"{obj} {name} seed {seed}: " + ", ".join(
+                    f"{r['scan']} {r['sphere']:.3f}" for r in rows[-len(scans):]), flush=True)
+    doc = {"machine": common.machine_end(info), "materials": names,
+           "seeds": list(range(args.seeds)), "grids": list(GRIDS), "damping": DAMPING,
+           "settings": "Balanced (PipelineSettings() defaults), 3 photos, 1 % noise",
+           "minutes": (time.perf_counter() - t_start) / 60.0,
+           "normals": scans_info, "summary": summary(rows, objects), "runs": rows}
+    path = common.RESULTS / ("normal_correction_quick.json" if args.quick
+                             else "normal_correction.json")
+    common.write_json(path, doc, arguments=vars(args))
+    plot(doc, path.with_suffix(".png"))
+    print(json.dumps(doc["summary"], indent=1))
+    print(f"-> {path}")
+    return 0
+
+
+def summary(rows, objects) -> dict:
+    """Per object and scan: medians over the materials, and how many the scan's
+    correction made better or worse than the uncorrected scan (by 10 % or more)."""
+    out = {}
+    for obj in objects:
+        out[obj] = {}
+        base = {r["material"]: r["sphere"] for r in rows
+                if r["object"] == obj and r["scan"] == "scan" and r["seed"] == 0}
+        for scan in dict.fromkeys(r["scan"] for r in rows if r["object"] == obj):
+            sel = [r for r in rows if r["object"] == obj and r["scan"] == scan]
+            here = {r["material"]: r["sphere"] for r in sel if r["seed"] == 0}
+            out[obj][scan] = {
+                "sphere": float(np.median([r["sphere"] for r in sel])),
+                "self_consistency": float(np.median([r["self_consistency"] for r in sel])),
+                "energy_min": float(min(r["energy"] for r in sel)),
+                "better": sum(here[m] < 0.9 * base[m] for m in here),
+                "worse": sum(here[m] > 1.1 * base[m] for m in here),
+                "materials": len(here)}
+    return out
+
+
+def plot(doc: dict, path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    objects = list(doc["summary"])
+    fig, axes = plt.subplots(1, len(objects), figsize=(6 * len(objects), 4.5), squeeze=False)
+    for ax, obj in zip(axes[0], objects, strict=True):
+        scans = list(doc["summary"][obj])
+        runs = [r for r in doc["runs"] if r["object"] == obj]
+        ax.boxplot([[r["sphere"] for r in runs if r["scan"] == s] for s in scans])
+        labels = [f"{s}\n{doc['normals'][obj][s]['median_deg']:.1f} deg" for s in scans]
+        ax.set_xticks(range(1, len(scans) + 1), labels)
+        ax.set_yscale("log")
+        ax.set_ylabel("rendered-sphere error, Balanced (every material)")
+        ax.set_title(f"{obj}: scan normals corrected by a smooth field fitted to the truth",
+                     fontsize=9)
+    common.save_figure(fig, path)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
