@@ -105,6 +105,8 @@ ENERGY_RECONCILED = 0.1
 MONOTONE_SIGMA = 0.5
 _LADDER = (np.arange(31), np.arange(0, 88, 3), np.array([0, 45, 90, 135]))
 _UNBOUNDED = 1e150  # a peak bound above this bounds nothing (and its square is finite)
+_FLOOR = 1e-150  # a sum or bound below this is 0 (and its square is not)
+_BLACK = 1e-6  # a channel below this share of the brightest one's light holds none
 _NOISE_PIXELS = 200_000  # normal_noise's pixels per photo and direction, at most
 
 
@@ -325,12 +327,17 @@ def energy_consistent(
         np.zeros((0, k)), np.zeros(0))
     s2_m = MONOTONE_SIGMA**2
 
+    sum_level = max(float(np.max(member[:, :len(radiance)] @ radiance)), _FLOOR)
+    top_level = max(float(np.max(radiance)), _FLOOR)
     for ch in range(3):
         g, obs, xt = shading[:, ch], radiance[:, ch], x_t[:, ch]
         sums = member[:, :len(obs)] @ obs
-        s2_e = (energy_sigma * np.maximum(sums, _TINY)) ** 2
-        top = np.concatenate([np.full(len(obs), max(float(np.max(obs)), _TINY)),
-                              np.clip(peak_top[:, ch], _TINY, _UNBOUNDED)])  # (N + B,) bounds
+        # floored at a millionth of the brightest channel's: a channel the photos hold
+        # no light in (the blue of a pure red, a black channel) has sums and bounds of
+        # 0, and uncertainties relative to them would divide by 0
+        s2_e = (energy_sigma * np.maximum(sums, _BLACK * sum_level)) ** 2
+        top = np.concatenate([np.full(len(obs), max(float(np.max(obs)), _BLACK * top_level)),
+                              np.clip(peak_top[:, ch], _BLACK * top_level, _UNBOUNDED)])
         s2_p = (peak_sigma * top) ** 2
         c0 = coefs[:, ch].copy()  # the trial's: the prior is on the move from it
         c = c0.copy()

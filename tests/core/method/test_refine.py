@@ -310,6 +310,24 @@ def test_a_trial_far_off_the_photos_refits_without_overflow(default_basis, heldo
     assert abs(np.log(after)) < abs(np.log(before))
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_a_channel_without_light_refits_without_warnings(default_basis, heldout_tables):
+    """Photos holding no light in one channel (the blue of a pure red object; a black
+    channel): that channel's sums and peak bounds are 0, and the refit's
+    uncertainties, relative to them, are floored above float64's underflow (they were
+    0: a division by zero, then NaN in the objective). The refit stays finite and
+    predicts nothing in blue."""
+    inputs = _inputs(heldout_tables["heldout_gold_medium"], exact=False)
+    for p in inputs:
+        p.photo[..., 2] = 0.0
+    region = pipeline.run(default_basis, inputs, SETTINGS).regions[0]
+    start = region.candidates.reconstructions[region.winner]
+    observed, trusted = region.refine_inputs.observed, region.refine_inputs.trusted
+    refined = refine.energy_consistent(default_basis, start, observed, trusted)
+    assert np.all(np.isfinite(refined.table))
+    assert np.all(np.isfinite(refined.coefficients))
+
+
 def _rise(table):
     """How far a table climbs with theta_h near its peak: the summed positive steps of
     log rho from one theta_h bin to the next, theta_h bins 0-30, every 3rd theta_d,
