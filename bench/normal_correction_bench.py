@@ -302,11 +302,13 @@ def plot(doc: dict, path) -> None:
         scans = list(doc["summary"][obj])
         runs = [r for r in doc["runs"] if r["object"] == obj]
         ax.boxplot([[r["sphere"] for r in runs if r["scan"] == s] for s in scans])
-        labels = [f"{s}\n{_median_deg(doc['normals'][obj][s]):.1f} deg" for s in scans]
-        ax.set_xticks(range(1, len(scans) + 1), labels)
+        counts = {s: len({r["material"] for r in runs if r["scan"] == s}) for s in scans}
+        labels = [f"{s.replace('_', ' ')}\n{_median_deg(doc['normals'][obj][s]):.1f} deg"
+                  f"\n{counts[s]} materials" for s in scans]
+        ax.set_xticks(range(1, len(scans) + 1), labels, fontsize=7)
         ax.set_yscale("log")
         ax.set_ylabel("rendered-sphere error, Balanced (every material)")
-        ax.set_title(f"{obj}: scan normals corrected by a smooth field fitted to the truth",
+        ax.set_title(f"{obj}: scan normals corrected by smooth fields (truth- or photo-fitted)",
                      fontsize=9)
     common.save_figure(fig, path)
 
