@@ -270,6 +270,16 @@ def save_figure(fig, path) -> None:
     plt.close(fig)
 
 
+def log_boxplot(ax, data, labels, ylabel: str, title: str, label_size=None) -> None:
+    """One panel of boxes on a log axis: ``data`` a list of value lists, one box each,
+    named by ``labels``; the photo-pipeline benches' per-mode and per-scan panels."""
+    ax.boxplot(data)
+    ax.set_xticks(range(1, len(labels) + 1), labels, fontsize=label_size)
+    ax.set_yscale("log")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=9)
+
+
 PIPELINE_OBJECTS = ("bunny", "spot")
 
 

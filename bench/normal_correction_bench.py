@@ -94,25 +94,40 @@ def rotation_field(x, n, G: int, lo, hi) -> sp.csr_matrix:
                          shape=(3 * N, 3 * G ** 3))
 
 
-def oracle_corrected(arrays: dict, G: int) -> dict:
-    """The capture with its scan normals corrected by the grid-G rotation field fitted to
-    the true normals (the bound of any correction that smooth)."""
+def scan_grid(arrays: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The scan's pixels a correction applies to, (V, H, W) bool (region >= 0, finite
+    normal), and the grid's corners lo, hi (3,): their positions' box, 1e-6 wider."""
+    seen = ((arrays["scan_region"] >= 0)
+            & np.all(np.isfinite(arrays["scan_normal"]), axis=-1))
+    x = arrays["scan_position"][seen].astype(np.float64)
+    return seen, x.min(axis=0) - 1e-6, x.max(axis=0) + 1e-6
+
+
+def with_field(arrays: dict, omega, G: int) -> dict:
+    """The capture with every scan normal of :func:`scan_grid`'s pixels turned by the
+    grid-G rotation field ``omega`` (3 G^3,) and normalised; the rest as it was."""
+    seen, lo, hi = scan_grid(arrays)
     sn = arrays["scan_normal"]
-    seen = (arrays["scan_region"] >= 0) & np.all(np.isfinite(sn), axis=-1)
-    both = seen & arrays["truth_mask"] & np.all(np.isfinite(arrays["truth_normal"]), axis=-1)
-    x_all = arrays["scan_position"][seen].astype(np.float64)
-    lo, hi = x_all.min(axis=0) - 1e-6, x_all.max(axis=0) + 1e-6
-    n = sn[both].astype(np.float64)
-    t = arrays["truth_normal"][both].astype(np.float64)
-    A = rotation_field(arrays["scan_position"][both].astype(np.float64), n, G, lo, hi)
-    omega = spl.lsqr(A, (t - n).ravel(), damp=DAMPING, iter_lim=500)[0]
-    n_all = sn[seen].astype(np.float64)
-    fixed = n_all + (rotation_field(x_all, n_all, G, lo, hi) @ omega).reshape(-1, 3)
+    n = sn[seen].astype(np.float64)
+    x = arrays["scan_position"][seen].astype(np.float64)
+    fixed = n + (rotation_field(x, n, G, lo, hi) @ omega).reshape(-1, 3)
     fixed /= np.linalg.norm(fixed, axis=-1, keepdims=True)
     out = dict(arrays)
     out["scan_normal"] = sn.copy()
     out["scan_normal"][seen] = fixed.astype(sn.dtype)
     return out
+
+
+def oracle_corrected(arrays: dict, G: int) -> dict:
+    """The capture with its scan normals corrected by the grid-G rotation field fitted to
+    the true normals (the bound of any correction that smooth)."""
+    seen, lo, hi = scan_grid(arrays)
+    both = seen & arrays["truth_mask"] & np.all(np.isfinite(arrays["truth_normal"]), axis=-1)
+    n = arrays["scan_normal"][both].astype(np.float64)
+    t = arrays["truth_normal"][both].astype(np.float64)
+    A = rotation_field(arrays["scan_position"][both].astype(np.float64), n, G, lo, hi)
+    omega = spl.lsqr(A, (t - n).ravel(), damp=DAMPING, iter_lim=500)[0]
+    return with_field(arrays, omega, G)
 
 
 def grid_laplacian(G: int) -> sp.csr_matrix:
@@ -140,7 +155,7 @@ def photo_fitted(arrays: dict, inputs, table, G: int = 16) -> dict:
     from brdf_reconstruct.core.brdf import render
 
     light = np.asarray(arrays["light"], dtype=np.float64)
-    seen = (arrays["scan_region"] >= 0) & np.all(np.isfinite(arrays["scan_normal"]), axis=-1)
+    seen, lo, hi = scan_grid(arrays)
     n0, x, v, radiance = [], [], [], []
     for i, p in enumerate(inputs):
         m = seen[i] & np.all(np.isfinite(p.photo), axis=-1) & (np.asarray(p.visibility) > 0.5)
@@ -158,8 +173,6 @@ def photo_fitted(arrays: dict, inputs, table, G: int = 16) -> dict:
         return np.log(render.shade(table, n, light, v, interpolation="trilinear").sum(axis=1)
                       + eps)
 
-    x_all = arrays["scan_position"][seen].astype(np.float64)
-    lo, hi = x_all.min(axis=0) - 1e-6, x_all.max(axis=0) + 1e-6
     A = rotation_field(x, n0, G, lo, hi)
     per_pixel = sp.csr_matrix((np.ones(3 * len(n0)), (np.repeat(np.arange(len(n0)), 3),
                                                        np.arange(3 * len(n0)))))
@@ -181,14 +194,7 @@ def photo_fitted(arrays: dict, inputs, table, G: int = 16) -> dict:
         step = spl.lsqr(sp.vstack([J, lap]), np.concatenate([w * r, -(lap @ omega)]),
                         damp=0.3, iter_lim=300)[0]
         omega = omega + step
-    sn = arrays["scan_normal"]
-    fixed = sn[seen].astype(np.float64) + (rotation_field(
-        x_all, sn[seen].astype(np.float64), G, lo, hi) @ omega).reshape(-1, 3)
-    fixed /= np.linalg.norm(fixed, axis=-1, keepdims=True)
-    out = dict(arrays)
-    out["scan_normal"] = sn.copy()
-    out["scan_normal"][seen] = fixed.astype(sn.dtype)
-    return out
+    return with_field(arrays, omega, G)
 
 
 def normal_error(arrays: dict) -> dict:
@@ -301,15 +307,14 @@ def plot(doc: dict, path) -> None:
     for ax, obj in zip(axes[0], objects, strict=True):
         scans = list(doc["summary"][obj])
         runs = [r for r in doc["runs"] if r["object"] == obj]
-        ax.boxplot([[r["sphere"] for r in runs if r["scan"] == s] for s in scans])
         counts = {s: len({r["material"] for r in runs if r["scan"] == s}) for s in scans}
         labels = [f"{s.replace('_', ' ')}\n{_median_deg(doc['normals'][obj][s]):.1f} deg"
                   f"\n{counts[s]} materials" for s in scans]
-        ax.set_xticks(range(1, len(scans) + 1), labels, fontsize=7)
-        ax.set_yscale("log")
-        ax.set_ylabel("rendered-sphere error, Balanced (every material)")
-        ax.set_title(f"{obj}: scan normals corrected by smooth fields (truth- or photo-fitted)",
-                     fontsize=9)
+        common.log_boxplot(
+            ax, [[r["sphere"] for r in runs if r["scan"] == s] for s in scans], labels,
+            "rendered-sphere error, Balanced (every material)",
+            f"{obj}: scan normals corrected by smooth fields (truth- or photo-fitted)",
+            label_size=7)
     common.save_figure(fig, path)
 
 

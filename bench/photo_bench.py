@@ -263,13 +263,10 @@ def plot(doc: dict, path) -> None:
         runs = [r for r in doc["runs"] if r["object"] == obj and r["mode"] != TRUTH]
         keys = sorted({(r["scan"], r["mode"]) for r in runs}, key=lambda k: (k[0] != "scan",
                                                                           k[1]))
-        data = [[r["sphere"] for r in runs if (r["scan"], r["mode"]) == k] for k in keys]
-        ax.boxplot(data)
-        ax.set_xticks(range(1, len(keys) + 1), [f"{s}\n{m}" for s, m in keys])
-        ax.set_yscale("log")
-        ax.set_ylabel("rendered-sphere error (every material and seed)")
-        ax.set_title(f"{obj}: photo pipeline per mode, degraded scan and exact floor",
-                     fontsize=9)
+        common.log_boxplot(
+            ax, [[r["sphere"] for r in runs if (r["scan"], r["mode"]) == k] for k in keys],
+            [f"{s}\n{m}" for s, m in keys], "rendered-sphere error (every material and seed)",
+            f"{obj}: photo pipeline per mode, degraded scan and exact floor")
     common.save_figure(fig, path)
 
 
