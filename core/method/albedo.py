@@ -478,10 +478,15 @@ def held_out_misfits(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=
     settings = settings or AlbedoSettings()
     n_views = int(views.max(initial=0)) + 1
 
-    def others(key, values, size):  # sums over each observation's key, less its photo's
-        pair = np.unique(key * n_views + views, return_inverse=True)[1].reshape(-1)
+    def pairs(key):  # each observation's (key, photo) pair, numbered
+        return np.unique(key * n_views + views, return_inverse=True)[1].reshape(-1)
+
+    def others(key, pair, values, size):  # sums over each observation's key, less its photo's
         return (np.bincount(key, values, minlength=size)[key]
                 - np.bincount(pair, values)[pair])
+
+    texel_pair = pairs(texel)
+    bin_pair = None if bins is None else pairs(bins)
 
     tex, one = np.zeros_like(rho), np.zeros_like(rho)
     # where the colour part is the smaller share, both predictions are the shared
@@ -493,14 +498,14 @@ def held_out_misfits(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=
             p = f["a"][texel] * d[:, c] + s[:, c]
             prior = 1.0 / settings.shape_sigma**2
             level = np.sum(weight * p * p * mi) / max(np.sum(weight * p * p), _TINY)
-            mi = (others(bins, weight * p * rho[:, c], n_bins) + prior) / (
-                others(bins, weight * p * p, n_bins) + prior) / level
+            mi = (others(bins, bin_pair, weight * p * rho[:, c], n_bins) + prior) / (
+                others(bins, bin_pair, weight * p * p, n_bins) + prior) / level
         dm = mi * d[:, c]
         big_w = weight * dm * dm
         big_b = weight * dm * (rho[:, c] - mi * s[:, c])
-        w_o = others(texel, big_w, n_texels)
+        w_o = others(texel, texel_pair, big_w, n_texels)
         held &= w_o > 1e-9 * np.bincount(texel, big_w, minlength=n_texels)[texel]
-        a_tex = np.where(w_o > 0.0, others(texel, big_b, n_texels) / np.where(
+        a_tex = np.where(w_o > 0.0, others(texel, texel_pair, big_b, n_texels) / np.where(
             w_o > 0.0, w_o, 1.0), 0.0)
         w_v, b_v = np.bincount(views, big_w), np.bincount(views, big_b)
         rest = big_w.sum() - w_v[views]
