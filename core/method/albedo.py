@@ -347,8 +347,7 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     if not (weighted > 0.0).all():  # the model explains the light without any colour
         raise ValueError("no observation constrains this region's albedo (under this "
                          "model its colour comes out zero or negative)")
-    predicted = np.stack([f["mi"] for f in fits], axis=1) * (a[used][local] * diffuse
-                                                              + specular)
+    predicted = np.stack([f["mi"] for f in fits], axis=1) * (a[texel] * diffuse + specular)
     channel_stats = [_variation(a[measured, c], h[measured, c], weighted[c], fits[c]["dof"],
                                 fits[c]["noise"], settings) for c in range(3)]
     textured = [s["p"] < settings.p_level and s["spread"] > s["noise"] for s in channel_stats]

@@ -296,7 +296,8 @@ def test_bad_inputs_get_one_sentence(change, message):
 
 @pytest.mark.parametrize("name, value", [("noise", 0.0), ("prior_sigma", np.nan),
                                          ("p_level", 1.0), ("iterations", 0),
-                                         ("iterations", 2.5)])
+                                         ("iterations", 2.5), ("shape_sigma", 0.0),
+                                         ("shape_sigma", np.inf)])
 def test_out_of_range_settings_are_refused(name, value):
     with pytest.raises(ValueError, match=name):
         albedo.AlbedoSettings(**{name: value})
