@@ -13,10 +13,12 @@ Balanced presets' fast-KL settings, which keep the highlights' energy
 (``refine="energy"``); "trials", Balanced's chosen trial before that refit (Balanced
 before 2026-12-04); the paper's 6 samples x 16 trials with the fast KL; and
 "refined", Balanced's chosen trial refitted to every pixel
-(``refine.photo_consistent``); the Cycles selection of the Accurate and Paper presets
-is not run here), on the degraded scan and on the exact scan (the truth's own
-G-buffers: the floor; Balanced, trials and refined only). Balanced, trials and
-refined come from one run, each timed as its own. The basis is the shipped
+(``refine.photo_consistent``); "energy", Balanced's chosen trial with the energy
+refit alone (``photo_consistent=0``: Balanced before the every-pixel refit was
+judged by the photos, 2026-12-04 evening); the Cycles selection of the Accurate and
+Paper presets is not run here), on the degraded scan and on the exact scan (the
+truth's own G-buffers: the floor; Balanced, trials, refined and energy only).
+Balanced, trials, refined and energy come from one run, each timed as its own. The basis is the shipped
 default that never saw the material (``common.default_basis_without``).
 
 Per run: ``sphere`` (``metrics.sphere_error``, three evaluation lights);
@@ -57,12 +59,15 @@ MODES = {
     "trials": dict(n_samples=20, n_trials=16, refine="none"),
     "paper": dict(n_samples=6, n_trials=16, refine="none"),
     "refined": dict(n_samples=20, n_trials=16, refine="photo"),
+    "energy": dict(n_samples=20, n_trials=16, refine="energy", photo_consistent=0.0),
 }
 # "trials" and "refined" come from Balanced's run: "trials" scores its chosen trial
 # as it is (Balanced before 2026-12-04, without keeping the highlights' energy),
-# "refined" the same trial refitted to every pixel (refine.photo_consistent)
-PAIRED = {"balanced": ("trials", "refined")}
-EXACT_MODES = ("balanced", "trials", "refined")
+# "refined" the same trial refitted to every pixel (refine.photo_consistent),
+# "energy" the same trial with the energy refit alone, never judged against the
+# every-pixel refit (photo_consistent=0: Balanced before 2026-12-04 evening)
+PAIRED = {"balanced": ("trials", "refined", "energy")}
+EXACT_MODES = ("balanced", "trials", "refined", "energy")
 SCANS = ("scan", "exact")
 # the true table itself re-rendered on each scan: the self-consistency no table can
 # beat on that scan (its normals' share of the error), in the summary as "<scan>/truth"
@@ -104,7 +109,7 @@ def main(argv=None) -> int:
                             continue  # scored in its pair's run
                         rows += _run(obj, name, seed, scan, mode, B, arrays, inputs, truth)
                 print(f"{obj} {name} seed {seed}: " + ", ".join(
-                    f"{r['scan']}/{r['mode']} {r['sphere']:.3f}" for r in rows[-8:]),
+                    f"{r['scan']}/{r['mode']} {r['sphere']:.3f}" for r in rows[-10:]),
                     flush=True)
     summary = _summary(rows, objects)
     doc = {"machine": common.machine_end(info), "materials": names, "seeds": list(range(seeds)),
@@ -147,6 +152,13 @@ def _run(obj, name, seed, scan, mode, B, arrays, inputs, truth) -> list[dict]:
     rows.append(dict(base, mode="refined", **_scores(photo.table, truth, arrays, inputs,
                                                         reliable_px),
                      seconds=seconds - refit_s + photo_s, wall=wall - refit_s + photo_s))
+    if region.refine_inputs is not None:  # the energy refit alone (the region is done)
+        pipeline.refine_chosen(region, photo_consistent=0.0)
+        energy_s = region.timings.get("refinement", 0.0)
+        rows.append(dict(base, mode="energy", **_scores(region.table, truth, arrays, inputs,
+                                                           reliable_px),
+                         seconds=seconds - refit_s + energy_s,
+                         wall=wall - refit_s + energy_s, refinement=region.refinement))
     return rows
 
 

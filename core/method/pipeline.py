@@ -31,6 +31,7 @@ from ..progress import Cancelled as Cancelled  # re-exported: what run() raises
 from ..progress import check
 from . import observations, refine, reliable, sampling, selection
 from .observations import Samples
+from .refine import PHOTO_CONSISTENT
 
 # What follows the KL selection (``refine``): nothing (the paper's method), the
 # chosen trial refitted to each photo's radiance sum ("energy", the default:
@@ -78,7 +79,10 @@ class PipelineSettings:
     docs/results.md) or "risk" (Bayes risk of the reconstruction, the core's
     default for exact values); ``core.method.sampling``. refine: what follows
     the selection, one of :data:`REFINEMENTS` ("energy" by default; "none" is
-    the paper's method).
+    the paper's method). photo_consistent: with the energy refinement, the
+    relative RMSE per photo (dimensionless, >= 0) at or below which the chosen
+    trial refitted to every pixel replaces it, if it also predicts each photo
+    from the others as well (:func:`refine_chosen`); 0 turns this off.
     n_trials: random-subset reconstructions per region. subset_fraction: share
     of the reliable samples each trial draws from. min_reliable_samples: a
     region with fewer reliable samples is skipped. kl_bins: histogram bins of
@@ -95,6 +99,7 @@ class PipelineSettings:
     seed: int = 0
     sampler: str = "condition"
     refine: str = "energy"
+    photo_consistent: float = PHOTO_CONSISTENT
 
     def __post_init__(self):
         for name in ("n_samples", "n_trials", "min_reliable_samples", "kl_bins"):
@@ -105,6 +110,9 @@ class PipelineSettings:
         if self.sampler not in sampling.CRITERIA:
             raise ValueError(f"sampler must be one of {', '.join(sampling.CRITERIA)}, "
                              f"got {self.sampler!r}")
+        if not (np.isfinite(self.photo_consistent) and self.photo_consistent >= 0.0):
+            raise ValueError("photo_consistent must be a finite number >= 0, "
+                             f"got {self.photo_consistent}")
         if self.refine not in REFINEMENTS:
             raise ValueError(f"refine must be one of {', '.join(REFINEMENTS)}, "
                              f"got {self.refine!r}")
@@ -134,13 +142,15 @@ class RefineInputs:
     method: "energy" or "photo" (:data:`REFINEMENTS` but "none"). basis: the run's
     Basis. observed: the region's observed samples after the up-front removals
     (``Samples``, N). trusted: the reliable region's samples (M). options: keyword
-    arguments of the refit (``peak_bound`` for the energy refit)."""
+    arguments of the refit (``peak_bound`` for the energy refit). photo_consistent:
+    the run's setting (``PipelineSettings.photo_consistent``)."""
 
     method: str
     basis: Basis
     observed: Samples
     trusted: Samples
     options: dict
+    photo_consistent: float = 0.0
 
 
 @dataclasses.dataclass(eq=False)
@@ -369,7 +379,8 @@ def run_region(
     if method != "none":
         # Eq. (2)'s bound on the peak where Eq. (2) holds (not with the peak clipped)
         options = {"peak_bound": rel.use_brightest} if method == "energy" else {}
-        result.refine_inputs = RefineInputs(method, basis, observed, cand, options)
+        result.refine_inputs = RefineInputs(method, basis, observed, cand, options,
+                                            settings.photo_consistent)
         check(cancelled)
         if progress:
             progress(1.0, f"region {region}: refining the chosen table "
@@ -378,14 +389,29 @@ def run_region(
     return result
 
 
-def refine_chosen(result: RegionResult) -> None:
+def refine_chosen(result: RegionResult, photo_consistent: float | None = None) -> None:
     """Refit ``result``'s chosen trial (``result.winner``) with the run's refinement
     (``core.method.refine.energy_consistent`` or ``photo_consistent``, on the
     region's observed pixels) and make it ``result.table``; records
     ``refinement`` and its time. Nothing to do when the refinement is off
-    (``refine_inputs`` None)."""
+    (``refine_inputs`` None).
+
+    The energy refinement is judged by the photos: the chosen trial is also
+    refitted to every observed pixel (``refine.photo_consistent``), and where that
+    refit reproduces each photo to a relative RMSE of ``photo_consistent`` or less
+    (default: the run's ``PipelineSettings.photo_consistent``; 0: never) and, refitted
+    to the other photos alone, predicts each photo as well
+    (``refine.held_out_rmse``), it is the table: the scan's normals are then good
+    enough for the photos to be read pixel by pixel, which the energy refit does
+    not do. ``refinement["every_pixel"]`` records its ``relative_rmse``, ``per_photo``
+    and ``held_out`` errors and whether it was ``kept``; ``refinement["table"]`` says
+    which became the table: "trial", "energy" or "every_pixel"."""
     if result.refine_inputs is None:
         return
+    judge = (result.refine_inputs.photo_consistent if photo_consistent is None
+             else float(photo_consistent))
+    if not (np.isfinite(judge) and judge >= 0.0):
+        raise ValueError(f"photo_consistent must be a finite number >= 0, got {judge}")
     inp = result.refine_inputs
     method, basis, observed, trusted = inp.method, inp.basis, inp.observed, inp.trusted
     t0 = time.perf_counter()
@@ -410,18 +436,39 @@ def refine_chosen(result: RegionResult) -> None:
                 f"{', '.join(f'{r:.2f}' for r in ratios)}) by more than they miss it "
                 "together, and the refit does not reconcile them (ratios after "
                 f"{', '.join(f'{r:.2f}' for r in after)}), so the trial was kept as it is")
+    common = {**recorded, "method": method, "trial": int(result.winner),
+              "energy_before": energy}
     if skipped:
-        result.table = start.table  # nothing the photos agree on to give back
-        result.refinement = {**recorded, "method": method, "trial": int(result.winner),
-                             "energy_before": energy, "skipped": skipped}
-        result.timings["refinement"] = time.perf_counter() - t0
-        return
-    result.table = refined.table
-    result.refinement = {
-        **recorded, "method": method, "trial": int(result.winner),
-        "before": refine.relative_rmse(start, observed),
-        "after": refine.relative_rmse(refined, observed),
-        "energy_before": energy, "energy_after": refine.energy_ratio(refined, observed)}
+        chosen = start  # nothing the photos agree on to give back
+        result.refinement = {**common, "skipped": skipped, "table": "trial"}
+    else:
+        chosen = refined
+        result.refinement = {
+            **common, "before": refine.relative_rmse(start, observed),
+            "after": refine.relative_rmse(refined, observed),
+            "energy_after": refine.energy_ratio(refined, observed),
+            "table": "energy" if method == "energy" else "every_pixel"}
+    if method == "energy" and judge > 0.0:
+        every = refine.photo_consistent(basis, start, observed, trusted)
+        rmse = refine.relative_rmse(every, observed)
+        per_photo = refine.relative_rmse_per_photo(every, observed)
+        kept = bool(np.all(per_photo <= judge))  # NaN (a black photo) is not kept
+        held_out = refine.held_out_rmse(basis, start, observed, trusted) if kept else None
+        if held_out is not None:
+            kept = bool(np.all(held_out <= judge))
+        result.refinement["every_pixel"] = {
+            "relative_rmse": rmse, "kept": kept, "per_photo": [float(r) for r in per_photo],
+            "held_out": None if held_out is None else [float(r) for r in held_out],
+            "threshold": judge}
+        if kept:
+            chosen = every
+            if "skipped" in result.refinement:  # said of the energy refit, not the table
+                result.refinement["energy_skipped"] = result.refinement.pop("skipped")
+            result.refinement.update(
+                table="every_pixel", energy_after=refine.energy_ratio(every, observed),
+                energy_per_photo_after=[float(r) for r in refine.energy_ratios(every,
+                                                                               observed)])
+    result.table = chosen.table
     result.timings["refinement"] = time.perf_counter() - t0
 
 

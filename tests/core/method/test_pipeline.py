@@ -129,6 +129,9 @@ def test_bad_settings_are_rejected():
         pipeline.PipelineSettings(subset_fraction=0.0)
     with pytest.raises(ValueError, match="sampler must be one of risk, condition"):
         pipeline.PipelineSettings(sampler="entropy")
+    for value in (-0.1, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="photo_consistent must be a finite number >= 0"):
+            pipeline.PipelineSettings(photo_consistent=value)
 
 
 def test_sampler_setting_reaches_the_trials(default_basis, two_materials):
