@@ -18,8 +18,8 @@ refit alone (``photo_consistent=0``: Balanced before the every-pixel refit was
 judged by the photos, 2026-12-04 evening); the Cycles selection of the Accurate and
 Paper presets is not run here), on the degraded scan and on the exact scan (the
 truth's own G-buffers: the floor; Balanced, trials, refined and energy only).
-Balanced, trials, refined and energy come from one run, each timed as its own. The basis is the shipped
-default that never saw the material (``common.default_basis_without``).
+Balanced, trials, refined and energy come from one run, each timed as its own. The
+basis is the shipped default that never saw the material (``common.default_basis_without``).
 
 Per run: ``sphere`` (``metrics.sphere_error``, three evaluation lights);
 ``self_consistency``, the chosen table re-rendered on the scan's G-buffers under
