@@ -456,9 +456,10 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None) -
         held_out = refine.held_out_rmse(basis, start, observed, trusted) if kept else None
         if held_out is not None:
             kept = bool(np.all(held_out <= judge))
-        result.refinement["every_pixel"] = {
-            "relative_rmse": rmse, "kept": kept, "per_photo": [float(r) for r in per_photo],
-            "held_out": None if held_out is None else [float(r) for r in held_out],
+        result.refinement["every_pixel"] = {  # NaN (a black photo) as None: JSON
+            "relative_rmse": _finite_or_none(rmse), "kept": kept,
+            "per_photo": [_finite_or_none(r) for r in per_photo],
+            "held_out": None if held_out is None else [_finite_or_none(r) for r in held_out],
             "threshold": judge}
         if kept:
             chosen = every
@@ -470,6 +471,10 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None) -
                                                                                observed)])
     result.table = chosen.table
     result.timings["refinement"] = time.perf_counter() - t0
+
+
+def _finite_or_none(value) -> float | None:
+    return float(value) if np.isfinite(value) else None
 
 
 def run(
