@@ -32,7 +32,8 @@ SETTING_NAMES = (
     "use_curvature", "curvature_threshold", "use_monotonicity", "monotonicity_tolerance",
     "use_brightest", "peak_max_angle", "clip_level", "min_cosine", "samples", "trials",
     "subset_fraction", "min_reliable_samples", "kl_path", "kl_bins", "kl_samples", "seed",
-    "preset", "region_mode", "sampler", "keep_highlight_energy", "refine_to_photos", "texture",
+    "preset", "region_mode", "sampler", "keep_highlight_energy", "photo_consistent",
+    "refine_to_photos", "texture",
     "texture_size", "uv_map", "material_model", "export_gltf",
 )
 

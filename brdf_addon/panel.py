@@ -180,9 +180,12 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
         col.prop(s, "min_cosine")
         col = layout.column(heading="Sampling")
         for name in ("samples", "sampler", "trials", "subset_fraction",
-                     "min_reliable_samples", "keep_highlight_energy",
-                     "refine_to_photos"):
+                     "min_reliable_samples", "keep_highlight_energy"):
             col.prop(s, name)
+        sub = col.column()
+        sub.active = s.keep_highlight_energy and not s.refine_to_photos
+        sub.prop(s, "photo_consistent")
+        col.prop(s, "refine_to_photos")
         layout.prop(s, "material_model")
         layout.prop(s, "export_gltf")
         col = layout.column(heading="Texture")

@@ -305,6 +305,12 @@ class BRDFSettings(PropertyGroup):
         "trials lose (median sphere error 0.40 to 0.28 on the bunny, 0.67 to 0.53 on "
         "Spot); kept as it is where the trial already holds the photos' energy or the "
         "photos disagree on it; off in the paper's method")
+    photo_consistent: FloatProperty(
+        name="Every-Pixel Threshold", default=0.2, min=0.0, max=1.0,
+        description="With Keep Highlight Energy: where the chosen table refitted to every "
+        "observed pixel reproduces each photo to this relative RMSE, and predicts each "
+        "photo from the others as well, it replaces the energy refit (accurate scans: "
+        "the photos read pixel by pixel). 0 turns it off")
     refine_to_photos: BoolProperty(
         name="Refine to Photos", default=False,
         description="After the selection, refit the chosen table to every observed pixel "
@@ -427,7 +433,8 @@ def pipeline_settings(settings):
         min_reliable_samples=settings.min_reliable_samples, kl_bins=settings.kl_bins,
         seed=settings.seed, sampler=settings.sampler.lower(),
         refine=("photo" if settings.refine_to_photos
-                else "energy" if settings.keep_highlight_energy else "none"))
+                else "energy" if settings.keep_highlight_energy else "none"),
+        photo_consistent=settings.photo_consistent)
 
 
 def settings_dict(settings) -> dict:

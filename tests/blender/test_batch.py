@@ -110,6 +110,8 @@ def test_same_seed_same_table(job_dir):
     (("seed = 4", "seed = -1"), "setting seed = -1: must be at least 0"),
     (("seed = 4", "seed = 4\nsubset_fraction = 2.0"),
      "setting subset_fraction = 2.0: must be from 0.01 to 1"),
+    (("seed = 4", "seed = 4\nphoto_consistent = -0.1"),
+     "setting photo_consistent = -0.1: must be from 0 to 1"),
     (("curvature_threshold = 1.5", "curvature_threshold = nan"),
      "setting curvature_threshold = nan: must be finite"),
     (("samples = 12", 'samples = "twelve"'), "setting samples = 'twelve': must be a whole"),

@@ -200,6 +200,17 @@ def test_job_refine_to_photos_reaches_the_pipeline(scene):
     assert props.settings_dict(scene.brdf)["refine_to_photos"] is True
 
 
+def test_job_photo_consistent_reaches_the_pipeline(scene):
+    from brdf_reconstruct.core.method import refine
+
+    assert props.pipeline_settings(scene.brdf).photo_consistent == pytest.approx(
+        refine.PHOTO_CONSISTENT)  # the panel's default is the pipeline's
+    job_module.apply(_job(scene, {"photo_consistent": 0.0}), scene)
+    assert props.pipeline_settings(scene.brdf).photo_consistent == 0.0
+    assert props.settings_dict(scene.brdf)["photo_consistent"] == 0.0
+    assert scene.brdf.preset == "BALANCED"  # not a preset's value
+
+
 def test_job_keep_highlight_energy_reaches_the_pipeline(scene):
     assert scene.brdf.keep_highlight_energy is True  # Balanced's
     job_module.apply(_job(scene, {"keep_highlight_energy": False}), scene)
