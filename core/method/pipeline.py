@@ -419,7 +419,22 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None) -
     recorded = {k: v for k, v in result.refinement.items() if k == "normal_noise_deg"}
     energy = refine.energy_ratio(start, observed)
     ratios = refine.energy_ratios(start, observed)
-    recorded["energy_per_photo"] = [float(r) for r in ratios]
+    recorded.update(energy_per_photo=[float(r) for r in ratios], method=method,
+                    trial=int(result.winner), energy_before=energy)
+    if method == "energy" and judge > 0.0:  # the photos judge first: read pixel by pixel?
+        every, verdict = _every_pixel_verdict(basis, start, observed, trusted, judge)
+        recorded["every_pixel"] = verdict
+        if verdict["kept"]:
+            result.table = every.table
+            result.refinement = {
+                **recorded, "table": "every_pixel",
+                "before": refine.relative_rmse(start, observed),
+                "after": verdict["relative_rmse"],
+                "energy_after": refine.energy_ratio(every, observed),
+                "energy_per_photo_after": [float(r) for r in refine.energy_ratios(
+                    every, observed)]}
+            result.timings["refinement"] = time.perf_counter() - t0
+            return
     skipped = None
     if method == "energy" and abs(energy - 1.0) <= refine.ENERGY_TOLERANCE:
         skipped = (f"the chosen trial's radiance is already within "
@@ -436,41 +451,37 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None) -
                 f"{', '.join(f'{r:.2f}' for r in ratios)}) by more than they miss it "
                 "together, and the refit does not reconcile them (ratios after "
                 f"{', '.join(f'{r:.2f}' for r in after)}), so the trial was kept as it is")
-    common = {**recorded, "method": method, "trial": int(result.winner),
-              "energy_before": energy}
     if skipped:
-        chosen = start  # nothing the photos agree on to give back
-        result.refinement = {**common, "skipped": skipped, "table": "trial"}
+        result.table = start.table  # nothing the photos agree on to give back
+        result.refinement = {**recorded, "skipped": skipped, "table": "trial"}
     else:
-        chosen = refined
+        result.table = refined.table
         result.refinement = {
-            **common, "before": refine.relative_rmse(start, observed),
+            **recorded, "before": refine.relative_rmse(start, observed),
             "after": refine.relative_rmse(refined, observed),
             "energy_after": refine.energy_ratio(refined, observed),
             "table": "energy" if method == "energy" else "every_pixel"}
-    if method == "energy" and judge > 0.0:
-        every = refine.photo_consistent(basis, start, observed, trusted)
-        rmse = refine.relative_rmse(every, observed)
-        per_photo = refine.relative_rmse_per_photo(every, observed)
-        kept = bool(np.all(per_photo <= judge))  # NaN (a black photo) is not kept
-        held_out = refine.held_out_rmse(basis, start, observed, trusted) if kept else None
-        if held_out is not None:
-            kept = bool(np.all(held_out <= judge))
-        result.refinement["every_pixel"] = {  # NaN (a black photo) as None: JSON
-            "relative_rmse": _finite_or_none(rmse), "kept": kept,
-            "per_photo": [_finite_or_none(r) for r in per_photo],
-            "held_out": None if held_out is None else [_finite_or_none(r) for r in held_out],
-            "threshold": judge}
-        if kept:
-            chosen = every
-            if "skipped" in result.refinement:  # said of the energy refit, not the table
-                result.refinement["energy_skipped"] = result.refinement.pop("skipped")
-            result.refinement.update(
-                table="every_pixel", energy_after=refine.energy_ratio(every, observed),
-                energy_per_photo_after=[float(r) for r in refine.energy_ratios(every,
-                                                                               observed)])
-    result.table = chosen.table
     result.timings["refinement"] = time.perf_counter() - t0
+
+
+def _every_pixel_verdict(basis, start, observed, trusted, judge: float):
+    """The chosen trial refitted to every observed pixel (``refine.photo_consistent``)
+    and whether the photos keep it: each photo reproduced to a relative RMSE of
+    ``judge`` or less, and (asked only then) each predicted as well by the refit to
+    the others (``refine.held_out_rmse``). Returns the refit and a JSON-ready record
+    (``relative_rmse``, ``per_photo``, ``held_out``, ``kept``, ``threshold``; NaN,
+    a black photo's, as None, and never kept)."""
+    every = refine.photo_consistent(basis, start, observed, trusted)
+    per_photo = refine.relative_rmse_per_photo(every, observed)
+    kept = bool(np.all(per_photo <= judge))
+    held_out = refine.held_out_rmse(basis, start, observed, trusted) if kept else None
+    if held_out is not None:
+        kept = bool(np.all(held_out <= judge))
+    return every, {
+        "relative_rmse": _finite_or_none(refine.relative_rmse(every, observed)),
+        "kept": kept, "per_photo": [_finite_or_none(r) for r in per_photo],
+        "held_out": None if held_out is None else [_finite_or_none(r) for r in held_out],
+        "threshold": judge}
 
 
 def _finite_or_none(value) -> float | None:
