@@ -15,7 +15,10 @@ is read, so no table meets every sum), and where the scan's normals are noisy fr
 (:func:`normal_noise`, :data:`MAX_NORMAL_NOISE_DEG`). Measured in
 ``bench/photo_bench.py`` (docs/results.md).
 
-**Every pixel** (:func:`photo_consistent`, setting ``refine_to_photos``, off):
+**Every pixel** (:func:`photo_consistent`, setting ``refine_to_photos``, off; and
+the judge of the energy refit: ``pipeline.refine_chosen`` keeps it in the energy
+refit's place where it reproduces each photo, :func:`relative_rmse_per_photo`, and
+predicts each from the others, :func:`held_out_rmse`, to :data:`PHOTO_CONSISTENT`):
 
 A trial reconstructs from a few samples in the basis' log mapping, where a
 highlight 10^3 above the diffuse level weighs no more than a dark pixel; the
