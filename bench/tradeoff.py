@@ -221,6 +221,8 @@ def run_point(point: Point) -> dict:
         # for comparison only
         "ru_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         "counts": region.counts, "winner": int(winner),
+        # which table the refinement kept: "trial", "energy" or "every_pixel" (None: off)
+        "table": region.refinement.get("table") if region.refinement else None,
         "sphere_error": metrics.sphere_error(table, truth),
         "brdf_log_rmse": metrics.brdf_log_rmse(table, truth),
         "baked_sphere_error": metrics.sphere_error(baked, truth),
@@ -450,6 +452,7 @@ def run_ablation(quick: bool, samples: int = BASE.samples) -> dict:
                             "kl": float(trial[r.winner]),
                             "kl_energy": float(metrics.sphere_error(r.table, truth)),
                             "refit_skipped": r.refinement.get("skipped", ""),
+                            "table": r.refinement.get("table"),
                             "reliable": r.counts.get("reliable"),
                             "skipped": r.skipped_assumptions}
         per_material[material] = errors

@@ -53,14 +53,15 @@ PRESETS = {
 }
 
 # One line per preset for the panel and tooltips: what it costs and buys, as measured
-# (bench/results/tradeoff.json, "presets", 2026-12-04, `bench/tradeoff.py --part presets`
+# (bench/results/tradeoff.json, "presets", 2026-12-04 evening, with the photos judging
+# the refit, `bench/tradeoff.py --part presets`
 # run on every entry of PRESETS, the default measured basis and the pipeline's default
 # condition-number sampler: bunny capture, 3 photos of 240 x 180, wall seconds per
 # region on a 2-core machine shared with other jobs, median rendered-sphere error over
 # 2 analytic and 2 measured held-out materials x 2 seeds; docs/results.md).
 HINTS = {
-    "FAST": "20 samples x 4 trials, numpy selection, energy refit: about 1 s, error 0.17",
-    "BALANCED": "20 samples x 16 trials, numpy selection, energy refit: about 2 s, error 0.18",
-    "ACCURATE": "20 samples x 16 trials, Cycles selection, energy refit: about 5 s, error 0.18",
+    "FAST": "20 samples x 4 trials, numpy selection, photo-judged refit: about 1.6 s, error 0.17",
+    "BALANCED": "20 samples x 16 trials, numpy selection, photo-judged refit: about 2 s, error 0.18",
+    "ACCURATE": "20 samples x 16 trials, Cycles selection, photo-judged refit: about 6 s, error 0.18",
     "PAPER": "The paper's method: 6 samples x 16 trials, Cycles selection: about 5 s, error 0.27",
 }
