@@ -385,11 +385,12 @@ def run_region(
         if progress:
             progress(1.0, f"region {region}: refining the chosen table "
                      + ("(the photos' energy)" if method == "energy" else "to the photos"))
-        refine_chosen(result)
+        refine_chosen(result, cancelled=cancelled)
     return result
 
 
-def refine_chosen(result: RegionResult, photo_consistent: float | None = None) -> None:
+def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
+                  cancelled: Callable[[], bool] | None = None) -> None:
     """Refit ``result``'s chosen trial (``result.winner``) with the run's refinement
     (``core.method.refine.energy_consistent`` or ``photo_consistent``, on the
     region's observed pixels) and make it ``result.table``; records
@@ -405,7 +406,9 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None) -
     enough for the photos to be read pixel by pixel, which the energy refit does
     not do. ``refinement["every_pixel"]`` records its ``relative_rmse``, ``per_photo``
     and ``held_out`` errors and whether it was ``kept``; ``refinement["table"]`` says
-    which became the table: "trial", "energy" or "every_pixel"."""
+    which became the table: "trial", "energy" or "every_pixel". ``cancelled`` is
+    polled between the refits (:class:`Cancelled`; the result is then left as it
+    was)."""
     if result.refine_inputs is None:
         return
     judge = (result.refine_inputs.photo_consistent if photo_consistent is None
@@ -422,7 +425,9 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None) -
     recorded.update(energy_per_photo=[float(r) for r in ratios], method=method,
                     trial=int(result.winner), energy_before=energy)
     if method == "energy" and judge > 0.0:  # the photos judge first: read pixel by pixel?
-        every, verdict = _every_pixel_verdict(basis, start, observed, trusted, judge)
+        every, verdict = _every_pixel_verdict(basis, start, observed, trusted, judge,
+                                              cancelled)
+        check(cancelled)
         recorded["every_pixel"] = verdict
         if verdict["kept"]:
             result.table = every.table
@@ -464,7 +469,7 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None) -
     result.timings["refinement"] = time.perf_counter() - t0
 
 
-def _every_pixel_verdict(basis, start, observed, trusted, judge: float):
+def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelled=None):
     """The chosen trial refitted to every observed pixel (``refine.photo_consistent``)
     and whether the photos keep it: each photo reproduced to a relative RMSE of
     ``judge`` or less, and (asked only then) each predicted as well by the refit to
@@ -474,7 +479,8 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float):
     every = refine.photo_consistent(basis, start, observed, trusted)
     per_photo = refine.relative_rmse_per_photo(every, observed)
     kept = bool(np.all(per_photo <= judge))
-    held_out = refine.held_out_rmse(basis, start, observed, trusted) if kept else None
+    held_out = (refine.held_out_rmse(basis, start, observed, trusted, cancelled=cancelled)
+                if kept else None)
     if held_out is not None:
         kept = bool(np.all(held_out <= judge))
     return every, {

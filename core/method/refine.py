@@ -69,6 +69,7 @@ import numpy as np
 
 from ..brdf import merl
 from ..brdf.basis import EPS, Basis, _mapping_f64
+from ..progress import CancelCheck, check
 from .observations import Samples
 from .reconstruct import HUBER_K, Reconstruction
 
@@ -637,7 +638,8 @@ def _lookups(basis: Basis, weight, m_eps, cells, n, samples: Samples):
 
 
 def held_out_rmse(basis: Basis, start: Reconstruction, samples: Samples,
-                  trusted: Samples, iterations: int = HELD_OUT_ITERATIONS) -> np.ndarray:
+                  trusted: Samples, iterations: int = HELD_OUT_ITERATIONS,
+                  cancelled: CancelCheck | None = None) -> np.ndarray:
     """How well the every-pixel refit (:func:`photo_consistent`) predicts a photo it
     did not see: per photo p (in the order of ``np.unique(samples.view)``), the
     refit of ``start`` to the other photos' samples and trusted samples, and its
@@ -645,7 +647,8 @@ def held_out_rmse(basis: Basis, start: Reconstruction, samples: Samples,
     other to fit: NaN. A refit that meets each photo by bending the table where
     only that photo looks (photos that disagree, or directions the basis
     extrapolates to) predicts none of them. iterations: each refit's steps
-    (:data:`HELD_OUT_ITERATIONS`)."""
+    (:data:`HELD_OUT_ITERATIONS`). cancelled: polled before each refit
+    (:class:`core.progress.Cancelled` when it returns True)."""
     view = np.asarray(samples.view)
     photos = np.unique(view)
     out = np.full(len(photos), np.nan)
@@ -653,6 +656,7 @@ def held_out_rmse(basis: Basis, start: Reconstruction, samples: Samples,
         return out
     trusted_view = np.asarray(trusted.view)
     for i, p in enumerate(photos):
+        check(cancelled)
         others = np.flatnonzero(trusted_view != p)
         if len(others) == 0:
             continue

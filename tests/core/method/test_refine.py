@@ -259,6 +259,30 @@ def test_the_photos_are_read_pixel_by_pixel_where_the_scan_allows(default_basis,
     np.testing.assert_array_equal(table, blunted.table)
 
 
+def test_esc_during_the_judge_stops_between_refits_and_changes_nothing(default_basis,
+                                                                       heldout_tables):
+    """The judge's held-out refits (one per photo, about 0.3 to 0.8 s each) poll Esc:
+    cancelled after the first, refine_chosen raises Cancelled and leaves the
+    region's table and record as they were; not cancelled, it refits as before."""
+    region = pipeline.run(default_basis, _inputs(heldout_tables["heldout_gold_medium"]),
+                          SETTINGS).regions[0]
+    assert region.refinement["every_pixel"]["held_out"] is not None  # the refits ran
+    table, record = region.table.copy(), dict(region.refinement)
+    polls = []
+
+    def cancelled():
+        polls.append(1)
+        return len(polls) >= 2  # Esc pressed during the first held-out refit
+
+    with pytest.raises(pipeline.Cancelled):
+        pipeline.refine_chosen(region, cancelled=cancelled)
+    assert len(polls) == 2
+    np.testing.assert_array_equal(region.table, table)
+    assert region.refinement == record
+    pipeline.refine_chosen(region, cancelled=lambda: False)
+    np.testing.assert_array_equal(region.table, table)
+
+
 def test_the_energy_per_photo_follows_each_photo(default_basis, heldout_tables):
     """energy_ratios: one ratio per photo, and a photo twice as bright halves its own
     ratio and no other; energy_agreement: the mean and spread of their logarithms,
