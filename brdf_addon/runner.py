@@ -267,7 +267,7 @@ class Run:
             if r.refine_inputs is None:
                 r.table = r.candidates[winner].astype(np.float64)
             elif winner != r.refinement.get("trial"):
-                pipeline.refine_chosen(r)  # the refit of the Cycles path's winner
+                pipeline.refine_chosen(r, cancelled=self._cancelled)  # the Cycles winner refitted
             if self._textured is not None and winner != r.selection["fast_winner"]:
                 self._textured.retexture(r)  # the texture under the new winner
         done = self._cycles_total - len(self._cycles_queue)
