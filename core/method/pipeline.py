@@ -400,12 +400,15 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     The energy refinement is judged by the photos: the chosen trial is also
     refitted to every observed pixel (``refine.photo_consistent``), and where that
     refit reproduces each photo to a relative RMSE of ``photo_consistent`` or less
-    (default: the run's ``PipelineSettings.photo_consistent``; 0: never) and, refitted
-    to the other photos alone, predicts each photo as well
-    (``refine.held_out_rmse``), it is the table: the scan's normals are then good
+    (default: the run's ``PipelineSettings.photo_consistent``; 0: never) and,
+    refitted without each photo in turn, predicts the photo left out
+    (``refine.held_out_rmse``) and hardly moves on the rendered sphere
+    (``refine.photo_dependence``), both to the same level in the median over
+    photos, it is the table: the scan's normals are then good
     enough for the photos to be read pixel by pixel, which the energy refit does
     not do. ``refinement["every_pixel"]`` records its ``relative_rmse``, ``per_photo``
-    and ``held_out`` errors and whether it was ``kept``; ``refinement["table"]`` says
+    and ``held_out`` errors, its ``dependence`` on each photo and whether it was
+    ``kept``; ``refinement["table"]`` says
     which became the table: "trial", "energy" or "every_pixel". ``cancelled`` is
     polled between the refits (:class:`Cancelled`; the result is then left as it
     was)."""
@@ -472,21 +475,28 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
 def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelled=None):
     """The chosen trial refitted to every observed pixel (``refine.photo_consistent``)
     and whether the photos keep it: each photo reproduced to a relative RMSE of
-    ``judge`` or less, and (asked only then) each predicted as well by the refit to
-    the others (``refine.held_out_rmse``). Returns the refit and a JSON-ready record
-    (``relative_rmse``, ``per_photo``, ``held_out``, ``kept``, ``threshold``; NaN,
-    a black photo's, as None, and never kept)."""
+    ``judge`` or less, and (asked only then) the refit refitted without each photo
+    in turn predicting the photo left out (``refine.held_out_rmse``) and moving on
+    the rendered sphere (``refine.photo_dependence``) by ``judge`` or less, both in
+    the median over photos. Returns the refit and a
+    JSON-ready record (``relative_rmse``, ``per_photo``, ``held_out``,
+    ``dependence``, ``kept``, ``threshold``; NaN, a black photo's or a single
+    photo's, as None, and never kept)."""
     every = refine.photo_consistent(basis, start, observed, trusted)
     per_photo = refine.relative_rmse_per_photo(every, observed)
     kept = bool(np.all(per_photo <= judge))
-    held_out = (refine.held_out_rmse(basis, start, observed, trusted, cancelled=cancelled)
-                if kept else None)
-    if held_out is not None:
-        kept = bool(np.all(held_out <= judge))
+    held_out = dependence = None
+    if kept:
+        fits = refine.held_out_refits(basis, start, observed, trusted, cancelled=cancelled)
+        held_out = refine.held_out_rmse(basis, start, observed, trusted, fits=fits)
+        dependence = refine.photo_dependence(every, fits)
+        kept = bool(np.all(np.isfinite(held_out)) and np.all(np.isfinite(dependence))
+                    and np.median(held_out) <= judge and np.median(dependence) <= judge)
     return every, {
         "relative_rmse": _finite_or_none(refine.relative_rmse(every, observed)),
         "kept": kept, "per_photo": [_finite_or_none(r) for r in per_photo],
         "held_out": None if held_out is None else [_finite_or_none(r) for r in held_out],
+        "dependence": None if dependence is None else [_finite_or_none(r) for r in dependence],
         "threshold": judge}
 
 
