@@ -60,7 +60,7 @@ PRESETS = {
 # region on a 2-core machine shared with other jobs, median rendered-sphere error over
 # 2 analytic and 2 measured held-out materials x 2 seeds; docs/results.md).
 HINTS = {
-    "FAST": "20 samples x 4 trials, numpy selection, judged refit: about 1.6 s, error 0.17",
+    "FAST": "20 samples x 4 trials, numpy selection, judged refit: about 1.5 s, error 0.17",
     "BALANCED": "20 samples x 16 trials, numpy selection, judged refit: about 2 s, error 0.18",
     "ACCURATE": "20 samples x 16 trials, Cycles selection, judged refit: about 6 s, error 0.18",
     "PAPER": "The paper's method: 6 samples x 16 trials, Cycles selection: about 5 s, error 0.27",
