@@ -488,7 +488,7 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
     held_out = dependence = None
     if kept:
         fits = refine.held_out_refits(basis, start, observed, trusted, cancelled=cancelled)
-        held_out = refine.held_out_rmse(basis, start, observed, trusted, fits=fits)
+        held_out = refine.held_out_rmse(fits, observed)
         dependence = refine.photo_dependence(every, fits)
         kept = bool(np.all(np.isfinite(held_out)) and np.all(np.isfinite(dependence))
                     and np.median(held_out) <= judge and np.median(dependence) <= judge)

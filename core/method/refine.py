@@ -662,24 +662,20 @@ def held_out_refits(basis: Basis, start: Reconstruction, samples: Samples,
     return fits
 
 
-def held_out_rmse(basis: Basis, start: Reconstruction, samples: Samples,
-                  trusted: Samples, iterations: int = HELD_OUT_ITERATIONS,
-                  cancelled: CancelCheck | None = None, fits: list | None = None) -> np.ndarray:
+def held_out_rmse(fits: list, samples: Samples) -> np.ndarray:
     """How well the every-pixel refit (:func:`photo_consistent`) predicts a photo it
     did not see: per photo p (in the order of ``np.unique(samples.view)``), the
-    :func:`relative_rmse` on photo p's samples of its :func:`held_out_refits` entry
-    (``fits`` if given, else made here); (P,), NaN where there is none (one photo).
+    :func:`relative_rmse` on photo p's samples of its refit to the other photos
+    (``fits``: :func:`held_out_refits` of the same samples); (P,), NaN where there
+    is none (one photo).
     A refit that meets each photo by bending the table where only that photo looks
     predicts none of them (the gold's photos made 0.5x, 1x and 2x as bright: 0.36,
     0.16, 0.58); but a photo that alone sees some directions is predicted badly by
     a refit that is right (the exact bunny's coated paint: 1.5, 0.03, 0.04, the
     refit 0.062 from the truth), so the judge reads the median over photos."""
     view = np.asarray(samples.view)
-    photos = np.unique(view)
-    if fits is None:
-        fits = held_out_refits(basis, start, samples, trusted, iterations, cancelled)
-    out = np.full(len(photos), np.nan)
-    for i, (p, fit) in enumerate(zip(photos, fits, strict=True)):
+    out = np.full(len(fits), np.nan)
+    for i, (p, fit) in enumerate(zip(np.unique(view), fits, strict=True)):
         if fit is not None:
             out[i] = relative_rmse(fit, samples.subset(np.flatnonzero(view == p)))
     return out
