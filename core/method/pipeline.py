@@ -143,7 +143,10 @@ class RefineInputs:
     Basis. observed: the region's observed samples after the up-front removals
     (``Samples``, N). trusted: the reliable region's samples (M). options: keyword
     arguments of the refit (``peak_bound`` for the energy refit). photo_consistent:
-    the run's setting (``PipelineSettings.photo_consistent``)."""
+    the run's setting (``PipelineSettings.photo_consistent``). normalised: the
+    photos were normalised with an earlier table (a textured region's,
+    ``core.method.textured``), so they are not independent of the refit the judge
+    weighs against the trial (:func:`refine_chosen`)."""
 
     method: str
     basis: Basis
@@ -151,6 +154,7 @@ class RefineInputs:
     trusted: Samples
     options: dict
     photo_consistent: float = 0.0
+    normalised: bool = False
 
 
 @dataclasses.dataclass(eq=False)
@@ -305,8 +309,10 @@ def run_region(
     rng: np.random.Generator,
     progress=None,
     cancelled=None,
+    normalised: bool = False,
 ) -> RegionResult:
-    """Reliable region, trials and KL selection for one region's samples."""
+    """Reliable region, trials and KL selection for one region's samples
+    (``normalised``: as :func:`run`'s)."""
     sel = np.flatnonzero(samples.region == region)
     result = RegionResult(region=int(region), status="skipped",
                           counts={"observed": int(len(sel))})
@@ -380,7 +386,7 @@ def run_region(
         # Eq. (2)'s bound on the peak where Eq. (2) holds (not with the peak clipped)
         options = {"peak_bound": rel.use_brightest} if method == "energy" else {}
         result.refine_inputs = RefineInputs(method, basis, observed, cand, options,
-                                            settings.photo_consistent)
+                                            settings.photo_consistent, normalised)
         check(cancelled)
         if progress:
             progress(1.0, f"region {region}: refining the chosen table "
@@ -404,11 +410,15 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     refitted without each photo in turn, predicts the photo left out
     (``refine.held_out_rmse``) and hardly moves on the rendered sphere
     (``refine.photo_dependence``), both to the same level in the median over
-    photos, it is the table: the scan's normals are then good
+    photos, or predicts the photo left out to ``refine.TRIAL_SHARE`` of the chosen
+    trial's own error on the photos or less (median over photos; not where the
+    photos were ``normalised`` with an earlier table), it is the table: the scan's
+    normals are then good
     enough for the photos to be read pixel by pixel, which the energy refit does
     not do. ``refinement["every_pixel"]`` records its ``relative_rmse``, ``per_photo``
-    and ``held_out`` errors, its ``dependence`` on each photo and whether it was
-    ``kept``; ``refinement["table"]`` says
+    and ``held_out`` errors, its ``dependence`` on each photo, the trial's error on
+    each photo (``trial_per_photo``), whether it was ``kept`` and ``by`` which
+    test ("its own errors" or "against the trial"); ``refinement["table"]`` says
     which became the table: "trial", "energy" or "every_pixel". ``cancelled`` is
     polled between the refits (:class:`Cancelled`; the result is then left as it
     was)."""
@@ -428,8 +438,9 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     recorded.update(energy_per_photo=[float(r) for r in ratios], method=method,
                     trial=int(result.winner), energy_before=energy)
     if method == "energy" and judge > 0.0:  # the photos judge first: read pixel by pixel?
-        every, verdict = _every_pixel_verdict(basis, start, observed, trusted, judge,
-                                              cancelled)
+        every, verdict = _every_pixel_verdict(
+            basis, start, observed, trusted, judge, cancelled,
+            trial_share=0.0 if inp.normalised else refine.TRIAL_SHARE)
         check(cancelled)
         recorded["every_pixel"] = verdict
         if verdict["kept"]:
@@ -472,32 +483,46 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     result.timings["refinement"] = time.perf_counter() - t0
 
 
-def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelled=None):
+def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelled=None,
+                         trial_share: float = 0.0):
     """The chosen trial refitted to every observed pixel (``refine.photo_consistent``)
-    and whether the photos keep it: each photo reproduced to a relative RMSE of
-    ``judge`` or less, and (asked only then) the refit refitted without each photo
-    in turn predicting the photo left out (``refine.held_out_rmse``) and moving on
-    the rendered sphere (``refine.photo_dependence``) by ``judge`` or less, both in
-    the median over photos. Returns the refit and a
-    JSON-ready record (``relative_rmse``, ``per_photo``, ``held_out``,
-    ``dependence``, ``kept``, ``threshold``; NaN, a black photo's or a single
-    photo's, as None, and never kept)."""
+    and whether the photos keep it. It must reproduce each photo to a relative RMSE
+    of ``judge`` or less; then (asked only then) it is refitted without each photo
+    in turn, and kept if, in the median over photos, either
+    - the refits predict the photo left out (``refine.held_out_rmse``) and move on
+      the rendered sphere (``refine.photo_dependence``) by ``judge`` or less ("its
+      own errors"), or
+    - the refits predict the photo left out to ``trial_share`` of the chosen
+      trial's own relative RMSE on the photos or less ("against the trial"; 0:
+      not asked).
+    Returns the refit and a JSON-ready record (``relative_rmse``, ``per_photo``,
+    ``held_out``, ``dependence``, ``trial_per_photo``, ``kept``, ``by``,
+    ``threshold``, ``trial_share``; NaN, a black photo's or a single photo's, as
+    None, and never kept)."""
     every = refine.photo_consistent(basis, start, observed, trusted)
     per_photo = refine.relative_rmse_per_photo(every, observed)
     kept = bool(np.all(per_photo <= judge))
-    held_out = dependence = None
+    held_out = dependence = trial = None
+    by = None
     if kept:
         fits = refine.held_out_refits(basis, start, observed, trusted, cancelled=cancelled)
         held_out = refine.held_out_rmse(fits, observed)
         dependence = refine.photo_dependence(every, fits)
-        kept = bool(np.all(np.isfinite(held_out)) and np.all(np.isfinite(dependence))
-                    and np.median(held_out) <= judge and np.median(dependence) <= judge)
+        trial = refine.relative_rmse_per_photo(start, observed)
+        finite = bool(np.all(np.isfinite(held_out)) and np.all(np.isfinite(dependence)))
+        if finite and np.median(held_out) <= judge and np.median(dependence) <= judge:
+            by = "its own errors"
+        elif (finite and trial_share > 0.0 and np.all(np.isfinite(trial))
+              and np.median(held_out) <= trial_share * np.median(trial)):
+            by = "against the trial"
+        kept = by is not None
     return every, {
         "relative_rmse": _finite_or_none(refine.relative_rmse(every, observed)),
-        "kept": kept, "per_photo": [_finite_or_none(r) for r in per_photo],
+        "kept": kept, "by": by, "per_photo": [_finite_or_none(r) for r in per_photo],
         "held_out": None if held_out is None else [_finite_or_none(r) for r in held_out],
         "dependence": None if dependence is None else [_finite_or_none(r) for r in dependence],
-        "threshold": judge}
+        "trial_per_photo": None if trial is None else [_finite_or_none(r) for r in trial],
+        "threshold": judge, "trial_share": trial_share}
 
 
 def _finite_or_none(value) -> float | None:
@@ -511,12 +536,17 @@ def run(
     regions: Sequence[int] | None = None,
     progress: Callable[[float, str], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
+    normalised: bool = False,
 ) -> PipelineResult:
     """Reconstruct one BRDF per region from lit photos and their G-buffers.
 
     ``regions``: the region ids to reconstruct (default: every id >= 0 seen in
     any G-buffer). ``progress(fraction, message)`` is called between steps with
-    fraction in [0, 1]; ``cancelled()`` is polled between steps. Raises
+    fraction in [0, 1]; ``cancelled()`` is polled between steps. ``normalised``:
+    the photos were divided by a texture estimated with an earlier table
+    (``core.method.textured``); the judge then keeps the every-pixel refit only by
+    its own errors, not by comparing them with the trial's
+    (:func:`refine_chosen`). Raises
     ValueError with one sentence when no photo is given or every region is
     skipped, and :class:`Cancelled` when cancelled.
     """
@@ -547,7 +577,8 @@ def run(
     for i, (region, child) in enumerate(zip(regions, rng.spawn(len(regions)), strict=True)):
         lo = 0.1 + 0.9 * i / len(regions)
         results.append(run_region(basis, samples, inputs, int(region), settings, child,
-                                  stage_progress(lo, lo + 0.9 / len(regions)), cancelled))
+                                  stage_progress(lo, lo + 0.9 / len(regions)), cancelled,
+                                  normalised))
     timings["reliable_trials_selection"] = time.perf_counter() - t0
     for r in results:
         for stage, seconds in r.timings.items():

@@ -20,7 +20,8 @@ the judge of the energy refit: ``pipeline.refine_chosen`` keeps it in the energy
 refit's place where it reproduces each photo, :func:`relative_rmse_per_photo`, to
 :data:`PHOTO_CONSISTENT`, and, refitted without each photo in turn, predicts the
 photo left out, :func:`held_out_rmse`, and moves on the rendered sphere,
-:func:`photo_dependence`, by at most as much, both in the median over photos):
+:func:`photo_dependence`, by at most as much, both in the median over photos, or
+predicts the photo left out to :data:`TRIAL_SHARE` of the trial's own error):
 
 A trial reconstructs from a few samples in the basis' log mapping, where a
 highlight 10^3 above the diffuse level weighs no more than a dark pixel; the
@@ -96,6 +97,15 @@ MAX_NORMAL_NOISE_DEG = 2.0
 # fabric 0.225 to 0.076) and the rest 0.26 to 1.0 (purple paint at 0.26 worse);
 # checked on Spot (docs/results.md)
 PHOTO_CONSISTENT = 0.2
+# ... or where the refit, refitted without each photo in turn, predicts the photo
+# left out to at most this share of the chosen trial's own error on the photos
+# (medians over photos; pipeline.refine_chosen): the photos then say the refit is
+# better than what it replaces, even where it hangs on each photo more than
+# PHOTO_CONSISTENT allows (a photo alone sees part of the table). Measured on the
+# photo bench's captures (seed 0, 19 held-out materials, 76 runs): exact Spot's
+# refused refits 0.24 to 0.35 of the trial's error (each 0.07 to 0.57 better on the
+# sphere), every degraded scan's 0.92 or more (docs/results.md).
+TRIAL_SHARE = 0.5
 # Gauss-Newton steps of each held-out refit (held_out_rmse): what it measures, the
 # held-out photos' errors, settles within 5 (the exact bunny's gold, Lambert and
 # two-layer gold: equal to 0.002 at 3, 5, 10 and 20 steps) at a quarter of 20's time

@@ -259,6 +259,35 @@ def test_the_photos_are_read_pixel_by_pixel_where_the_scan_allows(default_basis,
     np.testing.assert_array_equal(table, blunted.table)
 
 
+def test_a_refit_that_hangs_on_each_photo_but_halves_the_trials_error_is_kept(
+        default_basis, heldout_tables):
+    """The polished aluminium under two lights, exact normals: refitted from one
+    photo alone, the every-pixel refit moves on the sphere by more than the
+    judge's 0.2 (measured 0.20 and 0.21: each photo alone sees part of the lobe),
+    but predicts the photo left out far better than the chosen trial fits it
+    (0.025 against 0.06). The photos say it is the better table, so it is kept
+    ("against the trial"), and it is nearer the truth than the energy refit
+    (measured 0.042 against 0.190; asked: 2x). Where the photos were normalised
+    with an earlier table (a textured region's) only its own errors count, and
+    the energy refit is the table."""
+    truth = heldout_tables["heldout_aluminium_polished"]
+    region = pipeline.run(default_basis, _inputs(truth, lights=(0, 2)), SETTINGS).regions[0]
+    judged = region.refinement["every_pixel"]
+    assert judged["kept"] and judged["by"] == "against the trial"
+    assert region.refinement["table"] == "every_pixel"
+    assert np.median(judged["dependence"]) > SETTINGS.photo_consistent
+    assert (np.median(judged["held_out"])
+            <= refine.TRIAL_SHARE * np.median(judged["trial_per_photo"]))
+    assert judged["trial_share"] == refine.TRIAL_SHARE
+    kept = metrics.sphere_error(region.table, truth)
+    region.refine_inputs = dataclasses.replace(region.refine_inputs, normalised=True)
+    pipeline.refine_chosen(region)
+    judged = region.refinement["every_pixel"]
+    assert not judged["kept"] and judged["by"] is None and judged["trial_share"] == 0.0
+    assert region.refinement["table"] != "every_pixel"
+    assert kept < metrics.sphere_error(region.table, truth) / 2
+
+
 def test_how_far_the_table_hangs_on_each_photo_is_its_sphere_error(default_basis,
                                                                      heldout_tables):
     """refine.photo_dependence reads the refits' radiance on the rendered sphere from
@@ -365,6 +394,10 @@ def test_a_refit_that_meets_each_photo_only_where_it_alone_looks_is_not_kept(
     judged = region.refinement["every_pixel"]
     assert max(judged["per_photo"]) <= SETTINGS.photo_consistent
     assert np.median(judged["held_out"]) > SETTINGS.photo_consistent and not judged["kept"]
+    # nor against the trial: the held-out photos are missed by more than half the
+    # trial's own error (measured 0.36 against 0.48)
+    assert (np.median(judged["held_out"])
+            > refine.TRIAL_SHARE * np.median(judged["trial_per_photo"]))
     assert len(judged["dependence"]) == 3  # recorded beside it
     assert region.refinement["table"] != "every_pixel"
     truth = heldout_tables["heldout_gold_medium"]

@@ -111,6 +111,10 @@ def test_the_judged_refit_keeps_the_shared_shape_near_the_truth(runs):
     assert shared < 0.5 * metrics.sphere_error(runs["naive"], truth)
     assert shared <= metrics.sphere_error(runs["trials"]["untextured"], truth) + 0.05
     assert np.isfinite(region.table).all()
+    # the photos were divided by a texture the previous table made: the judge reads
+    # the refit's own errors only, not how it compares with the trial's
+    assert region.refine_inputs.normalised
+    assert region.refinement["every_pixel"]["trial_share"] == 0.0
 
 
 def _texture(tex, model, table):
