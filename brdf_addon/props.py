@@ -309,8 +309,9 @@ class BRDFSettings(PropertyGroup):
         name="Every-Pixel Threshold", default=0.2, min=0.0, max=1.0,
         description="With Keep Highlight Energy: where the chosen table refitted to every "
         "observed pixel reproduces each photo to this relative RMSE and, refitted "
-        "without each photo, mostly predicts it and barely moves, it replaces the "
-        "energy refit (accurate scans: the photos read pixel by pixel). 0 turns it off")
+        "without each photo, mostly predicts it and barely moves (or predicts it to "
+        "half the chosen trial's own error), it replaces the energy refit (accurate "
+        "scans: the photos read pixel by pixel). 0 turns it off")
     refine_to_photos: BoolProperty(
         name="Refine to Photos", default=False,
         description="After the selection, refit the chosen table to every observed pixel "
