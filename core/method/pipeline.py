@@ -509,10 +509,11 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
         held_out = refine.held_out_rmse(fits, observed)
         dependence = refine.photo_dependence(every, fits)
         trial = refine.relative_rmse_per_photo(start, observed)
-        finite = bool(np.all(np.isfinite(held_out)) and np.all(np.isfinite(dependence)))
-        if finite and np.median(held_out) <= judge and np.median(dependence) <= judge:
+        predicted = bool(np.all(np.isfinite(held_out)))
+        if (predicted and np.all(np.isfinite(dependence))
+                and np.median(held_out) <= judge and np.median(dependence) <= judge):
             by = "its own errors"
-        elif (finite and trial_share > 0.0 and np.all(np.isfinite(trial))
+        elif (predicted and trial_share > 0.0 and np.all(np.isfinite(trial))
               and np.median(held_out) <= trial_share * np.median(trial)):
             by = "against the trial"
         kept = by is not None
