@@ -28,7 +28,10 @@ closed-form and vectorised with ``bincount``):
 - ``u_i``: Huber weights (IRLS; 1.345 robust standard deviations), so a few
   wrong observations (an interreflection, a misplaced highlight) do not pull a texel;
 - ``p_t``: the prior, the scan's own texture (linear colour, baked from the
-  ambient photos), scaled per channel by ``k`` (fitted on the measured texels) and
+  ambient photos), scaled per channel by ``k`` (the median over the measured
+  texels of the data's ratio to it, on a log scale: each texel counts once, so
+  the darkest texels, whose data are the most precise under relative noise, do
+  not set it where they are wrong: a shadow, a misregistered texel) and
   trusted to ``s_p = prior_sigma * k p_t`` (relative). Where no lit photo sees a
   texel the prior alone gives it; where there is neither, the nearest texel that
   has a value fills it (in the UV image).
@@ -593,19 +596,18 @@ def _variation(a, h, reference, dof_within, noise, settings) -> dict:
 
 
 def _with_prior(a, h, measured, prior, reference, settings):
-    """The prior's per-channel scale k (3,) (fitted on measured texels with a prior;
-    NaN where there is none) and the albedo (T, 3): the data and k p_t combined by
-    precision where the prior has a value, the data alone where it has not, NaN
-    where neither."""
+    """The prior's per-channel scale k (3,) (the median of log(a / p) over measured
+    texels with a prior, each texel once; NaN where there is none) and the albedo
+    (T, 3): the data and k p_t combined by precision where the prior has a value,
+    the data alone where it has not, NaN where neither."""
     has = np.isfinite(prior)
     p = np.where(has, prior, 0.0)
     data_h = np.where(measured[:, None], h, 0.0)
     k = np.full(3, np.nan)
     for c in range(3):
-        both = measured & has[:, c] & (p[:, c] > 0.0)
-        if both.any():
-            hb, pb = h[both, c], p[both, c]
-            k[c] = np.sum(hb * a[both, c] * pb) / np.sum(hb * pb**2)
+        both = measured & has[:, c] & (p[:, c] > 0.0) & (a[:, c] > 0.0)
+        if both.any():  # each texel once, on a log scale (see the docstring)
+            k[c] = np.exp(np.median(np.log(a[both, c] / p[both, c])))
     usable = has & np.isfinite(k)
     kp = np.where(usable, np.nan_to_num(k) * p, 0.0)
     sp = settings.prior_sigma * (kp + 0.01 * np.abs(reference))
