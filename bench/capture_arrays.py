@@ -88,6 +88,81 @@ def gbuffers(resolution=(240, 180), n_views: int = 6, lit_views=(0, 2, 4), light
     return out
 
 
+def ambient_shading(resolution=(240, 180), n_views: int = 6, lit_views=(0, 2, 4),
+                    seed: int = 0, scan_options: dict | None = None, mesh=None,
+                    samples: int = 64, cache: bool = True) -> np.ndarray:
+    """(V, H, W) float32: the ground truth seen by each lit camera of :func:`gbuffers`
+    (the same arguments), as a white Lambertian surface (albedo 1) under a uniform
+    white sky of radiance 1, rendered by Cycles (``samples`` per pixel, direct light
+    and one bounce): 1 where a point sees the whole sky, less where the object
+    occludes it (ambient occlusion, lit a little by the bounce); 0 on the
+    background. What a photogrammetry texture baked from ambient photos holds
+    besides the albedo (``bench/texture_bench.py``'s scan texture). Cached as
+    :func:`gbuffers` is. Resets Blender to an empty scene when it has to render."""
+    from brdf_reconstruct.core.brdf import basis
+    from testkit import capture
+
+    mesh = pathlib.Path(mesh) if mesh else None
+    key = _key(kind="ambient", resolution=list(resolution), n_views=n_views,
+               lit_views=list(lit_views), seed=seed, scan_options=scan_options or {},
+               mesh=mesh.name if mesh else capture.default_subject(), samples=samples)
+    path = basis.default_cache_dir() / "captures" / f"ambient_{key}.npy"
+    if cache and path.is_file():
+        return np.load(path)
+    out = _render_ambient(resolution, n_views, lit_views, seed, scan_options, mesh, samples)
+    if cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npy")
+        np.save(tmp, out)
+        tmp.replace(path)
+    return out
+
+
+def _render_ambient(resolution, n_views, lit_views, seed, scan_options, mesh, samples):
+    import bpy
+    import OpenImageIO as oiio
+
+    from brdf_reconstruct.brdf_addon import colmap_import
+    from brdf_reconstruct.brdf_addon.scratch_scene import configure_cycles
+
+    truth, scan, cameras = build_scene(resolution, n_views, seed, scan_options, mesh)
+    scene = bpy.context.scene
+    scan.hide_render = True
+    material = bpy.data.materials.new("white diffuse")
+    material.use_nodes = True
+    nodes = material.node_tree.nodes
+    nodes.clear()
+    diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    output = nodes.new("ShaderNodeOutputMaterial")
+    material.node_tree.links.new(diffuse.outputs["BSDF"], output.inputs["Surface"])
+    truth.data.materials.clear()
+    truth.data.materials.append(material)
+    world = bpy.data.worlds.new("white sky")
+    background = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
+    background.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    background.inputs["Strength"].default_value = 1.0
+    scene.world = world
+    configure_cycles(scene, samples, bounces=1, seed=seed)
+    r = scene.render
+    r.film_transparent = True
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_mode = "RGBA"
+    r.image_settings.color_depth = "32"
+    views = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in lit_views:
+            scene.camera = cameras[i]
+            colmap_import.set_render_to_camera(scene, cameras[i])
+            r.resolution_x, r.resolution_y = (int(v) for v in resolution)
+            r.resolution_percentage = 100
+            r.filepath = str(pathlib.Path(tmp) / f"ambient{i}.exr")
+            bpy.ops.render.render(write_still=True)
+            pixels = oiio.ImageBuf(r.filepath).get_pixels(oiio.FLOAT)
+            views.append(np.where(pixels[..., 3] > 0.5, pixels[..., 0], 0.0))
+    return np.stack(views).astype(np.float32)
+
+
 def build_scene(resolution=(240, 180), n_views: int = 6, seed: int = 0,
                 scan_options: dict | None = None, mesh=None):
     """``capture.build_scene`` with its COLMAP model in a temporary folder:

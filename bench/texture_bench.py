@@ -82,6 +82,16 @@ def scene(scan: str):
     return truth, seen
 
 
+def numpy_arrays(truth, seen) -> dict:
+    """The numpy scene as ``scan_texture`` reads a capture: one view (its photos share
+    the camera), the plane's (x, y) as both UV maps, the height field's sky."""
+    uv = synthetic.height_field_uv(seen)[None]
+    return {"truth_normal": truth.normal[None], "truth_position": truth.position[None],
+            "truth_mask": truth.mask[None], "camera_center": truth.camera_center[None],
+            "truth_uv": uv, "scan_uv": uv,
+            "ambient": height_field_sky(truth.position[..., 2])[None]}
+
+
 def inputs(colour, rest, texture, truth, seen, seed: int):
     return synthetic.textured_inputs(colour, rest, texture, SHAPE, truth, seen,
                                      rng_base=100 * seed)
@@ -97,9 +107,30 @@ def spot_arrays(light=None) -> dict:
 
     light = capture_arrays.LIGHT if light is None else tuple(light)
     degraded = capture_arrays.gbuffers(mesh=measured.DATA / "spot.obj", uv=True, light=light)
+    degraded["ambient"] = capture_arrays.ambient_shading(mesh=measured.DATA / "spot.obj")
     exact = photo_bench.exact_scan(degraded)
     exact["scan_uv"] = degraded["truth_uv"]
+    exact["ambient"] = degraded["ambient"]
     return {"exact": exact, "blunted": degraded}
+
+
+def height_field_sky(z: np.ndarray, directions: int = 16, reach: int = 48) -> np.ndarray:
+    """(H, W) the fraction of a uniform sky (cosine-weighted, about the vertical) each
+    point of the numpy scene's height field sees: 1 - the mean over ``directions``
+    azimuths of sin^2 of the horizon's elevation within ``reach`` pixels (the scene
+    spans [-1, 1]; beyond its edge the nearest height)."""
+    res = z.shape[0]
+    step = 2.0 / res
+    pad = np.pad(z, reach, mode="edge")
+    sin2 = np.zeros_like(z)
+    for angle in np.arange(directions) * 2.0 * np.pi / directions:  # 16 azimuths
+        tangent = np.zeros_like(z)
+        for k in range(1, reach + 1):  # ... times 48 steps, each a whole-image shift
+            di, dj = int(round(-k * np.sin(angle))), int(round(k * np.cos(angle)))
+            other = pad[reach + di: reach + di + res, reach + dj: reach + dj + res]
+            tangent = np.maximum(tangent, (other - z) / (np.hypot(di, dj) * step))
+        sin2 += tangent**2 / (1.0 + tangent**2)
+    return 1.0 - sin2 / directions
 
 
 def one(name: str, scan: str, seed: int, spot: dict | None = None,
@@ -111,10 +142,12 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
     tex = synthetic.patch_texture(shape, patch=4 if spot is None else 8, seed=seed)
     if spot is None:
         truth, seen = scene(scan)
+        arrays = numpy_arrays(truth, seen)
 
         def make(texture):
             return inputs(colour, rest, texture, truth, seen, seed)
     else:
+        arrays = spot[scan]
         import capture_arrays
 
         def make(texture):
@@ -131,6 +164,12 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
     region = result.result.regions[0]
     t = result.textures[0]
     measured = t.map.coverage == albedo.MEASURED
+    prior = scan_texture(arrays, colour, rest, tex, shape, arrays["ambient"],
+                         registration=registration if spot is not None else "truth", seed=seed)
+    with_prior = textured.run(basis, photos, settings, textured.TextureSettings(shape=shape),
+                              prior=prior)
+    tp = with_prior.textures[0]
+    seen_p = (tp.map.coverage == albedo.MEASURED) & np.isfinite(prior.reshape(-1, 3)).all(1)
     # the shared table is at the region's reference color, the mean albedo over the
     # measured texels (core.method.albedo): only the product of table and texture is
     # observed, so its truth is the true table with the true texture's mean over the
@@ -138,6 +177,7 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
     mean = tex[measured].mean(axis=0) if measured.any() else np.ones(3)
     at_reference = rest + colour * mean[:, None, None, None]
     floor = _floor(table, photos, tex, shape)
+    mean_p = tex[tp.map.coverage == albedo.MEASURED].mean(axis=0)
     return {
         "object": "numpy" if spot is None else "spot", "material": name, "scan": scan,
         "registration": registration if spot is not None else "truth",
@@ -145,6 +185,15 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
         "constant": bool(t.map.constant), "reason": t.map.reason,
         "measured_texels": int(measured.sum()),
         "albedo_error": pattern_error(t, tex), "albedo_error_floor": floor,
+        "with_scan_texture": {
+            "albedo_error": pattern_error(tp, tex),
+            "scan_texture_error": _relative_pattern_error(prior.reshape(-1, 3)[seen_p],
+                                                          tex[seen_p]),
+            "sphere": metrics.sphere_error(with_prior.result.regions[0].table,
+                                           rest + colour * mean_p[:, None, None, None]),
+            "constant": bool(tp.map.constant), "model": tp.model,
+            "weighting": tp.map.stats.get("prior_weighting"),
+            "agreement": tp.map.stats.get("prior_agreement")},
         "sphere": {"textured": metrics.sphere_error(region.table, at_reference),
                    "textured_against_mean_1": metrics.sphere_error(region.table, table),
                    "untextured": metrics.sphere_error(flat.table, table),
@@ -153,13 +202,87 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
     }
 
 
+def directional_albedo(table: np.ndarray, n_theta: int = 120, n_phi: int = 120) -> np.ndarray:
+    """(90, 3) the table's directional albedo (the fraction of a uniform white sky it
+    reflects towards a viewer at theta_o = 0.5, 1.5, ... 89.5 degrees), by a
+    quadrature over half vectors whose theta_h is spaced as the table's bins
+    (``t^2 pi / 2``), so a mirror's narrow lobe is integrated, not missed."""
+    from brdf_reconstruct.core.brdf import merl
+
+    t = (np.arange(n_theta) + 0.5) / n_theta
+    theta_h, dtheta = t * t * np.pi / 2.0, np.pi * t / n_theta
+    phi = (np.arange(n_phi) + 0.5) / n_phi * 2.0 * np.pi
+    th, ph = np.meshgrid(theta_h, phi, indexing="ij")
+    h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)],
+                 axis=-1).reshape(-1, 3)
+    d_omega = (np.sin(th) * dtheta[:, None] * (2.0 * np.pi / n_phi)).reshape(-1)
+    theta_o = np.radians(np.arange(90) + 0.5)
+    v = np.stack([np.sin(theta_o), np.zeros(90), np.cos(theta_o)], axis=-1)  # (90, 3)
+    vh = v @ h.T  # (90, M)
+    light = 2.0 * vh[..., None] * h[None] - v[:, None]  # (90, M, 3), v mirrored about h
+    ok = (vh > 0.0) & (light[..., 2] > 0.0)
+    rows = np.nonzero(ok)
+    f = merl.evaluate(table, np.tile([0.0, 0.0, 1.0], (len(rows[0]), 1)), light[ok],
+                      v[rows[0]])
+    # d omega_l = 4 (v.h) d omega_h
+    weight = light[ok][:, 2] * 4.0 * vh[ok] * d_omega[rows[1]]
+    out = np.zeros((90, 3))
+    np.add.at(out, rows[0], f * weight[:, None])
+    return out
+
+
+def scan_texture(arrays: dict, colour, rest, texture, shape, ambient, *,
+                 registration: str = "truth", noise: float = 0.01, seed: int = 0) -> np.ndarray:
+    """(height, width, 3) the scan's own colour texture, as photogrammetry bakes it:
+    each lit camera's ambient photo of the truth (``ambient``: (V, H, W)
+    ``capture_arrays.ambient_shading``, the sky each point sees) with the textured
+    table's reflection of a uniform white sky towards that camera (the texel's
+    albedo times ``colour``'s directional albedo plus ``rest``'s, at the angle
+    between the true normal and the view), 1 % noise, projected through the
+    scan's UVs and averaged over the views per texel (NaN where no view sees
+    one). Not the albedo: the ambient occlusion, the specular's reflection of the
+    sky and the misregistration of the scan's UVs (``registration="truth"``) are
+    in it, as in a real scan's texture; an uneven sky and the photos' exposure
+    are not."""
+    from brdf_reconstruct.core.method import albedo as albedo_
+
+    scaled, fixed = directional_albedo(colour), directional_albedo(rest) if np.nanmax(
+        rest) > 0.0 else np.zeros((90, 3))
+    n_texels = shape[0] * shape[1]
+    total, count = np.zeros((n_texels, 3)), np.zeros(n_texels)
+    rng = np.random.default_rng(1000 + seed)
+    for i in range(len(arrays["truth_normal"])):  # a loop over the 3 views
+        seen = arrays["truth_mask"][i] & np.isfinite(arrays["scan_uv"][i]).all(axis=-1)
+        n = arrays["truth_normal"][i][seen].astype(np.float64)
+        v = arrays["camera_center"][i] - arrays["truth_position"][i][seen]
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        angle = np.clip(np.degrees(np.arccos(np.clip(np.sum(n * v, axis=1), 0.0, 1.0))),
+                        0, 89).astype(int)
+        on = albedo_.texel_index(arrays[f"{registration}_uv"][i][seen].reshape(-1, 2), shape)
+        to = albedo_.texel_index(arrays["scan_uv"][i][seen].reshape(-1, 2), shape)
+        a = np.where((on >= 0)[:, None], texture[np.maximum(on, 0)], 1.0)
+        radiance = ambient[i][seen][:, None] * (a * scaled[angle] + fixed[angle])
+        radiance *= 1.0 + noise * rng.standard_normal(radiance.shape)
+        ok = to >= 0
+        for c in range(3):
+            total[:, c] += np.bincount(to[ok], radiance[ok, c], minlength=n_texels)
+        count += np.bincount(to[ok], minlength=n_texels)
+    out = np.full((n_texels, 3), np.nan)
+    out[count > 0] = total[count > 0] / count[count > 0, None]
+    return out.reshape(*shape, 3)
+
+
 def pattern_error(t: textured.RegionTexture, tex: np.ndarray) -> float:
     """The median over measured texels of the relative error of the texture's
     pattern (estimate and truth each over their mean on those texels)."""
     measured = t.map.coverage == albedo.MEASURED
-    est = t.relative()[measured]
-    est = est / est.mean(axis=0)
-    true = tex[measured] / tex[measured].mean(axis=0)
+    return _relative_pattern_error(t.relative()[measured], tex[measured])
+
+
+def _relative_pattern_error(estimate: np.ndarray, truth: np.ndarray) -> float:
+    """The median relative error of a pattern, each over its mean ((T, 3) both)."""
+    est = estimate / estimate.mean(axis=0)
+    true = truth / truth.mean(axis=0)
     return float(np.median(np.abs(est - true) / true))
 
 
@@ -208,6 +331,23 @@ def _summarise(rows: list) -> dict:
             "ratio_textured_over_untextured_median": float(np.median(ratios)),
             "within_1_3x": int(sum(r <= 1.3 for r in ratios)),
             "model_matches_truth": int(sum(v[0]["model"] == v[0]["truth"] for v in by.values())),
+        }
+        prior_ratios = [np.median([x["with_scan_texture"]["sphere"] / x["sphere"]["untextured"]
+                                   for x in v]) for v in by.values()]
+        out[scan]["with_scan_texture"] = {
+            "albedo_error_median": float(np.median([np.median(
+                [x["with_scan_texture"]["albedo_error"] for x in v]) for v in by.values()])),
+            "albedo_error_at_most_10_percent": int(sum(np.median(
+                [x["with_scan_texture"]["albedo_error"] for x in v]) <= 0.10
+                for v in by.values())),
+            "scan_texture_error_median": float(np.median([np.median(
+                [x["with_scan_texture"]["scan_texture_error"] for x in v])
+                for v in by.values()])),
+            "sphere_textured": float(np.median([np.median(
+                [x["with_scan_texture"]["sphere"] for x in v]) for v in by.values()])),
+            "ratio_textured_over_untextured_median": float(np.median(prior_ratios)),
+            "within_1_3x": int(sum(r <= 1.3 for r in prior_ratios)),
+            "constant": int(sum(v[0]["with_scan_texture"]["constant"] for v in by.values())),
         }
     return out
 
@@ -269,7 +409,10 @@ def main(argv=None) -> int:
         rows.append(one(name, scan, seed, spot if obj == "spot" else None,
                         args.registration))
         r = rows[-1]
+        w = r["with_scan_texture"]
         print(f"{obj} {name} {scan} seed {seed}: albedo {r['albedo_error']:.3f} "
+              f"(with the scan's texture {w['albedo_error']:.3f}, the texture itself "
+              f"{w['scan_texture_error']:.3f}, sphere {w['sphere']:.3f}) "
               f"(floor {r['albedo_error_floor']:.3f}) ({r['model']}, truth {r['truth']}), "
               f"sphere {r['sphere']['textured']:.3f} / {r['sphere']['untextured']:.3f} "
               f"untextured / {r['sphere']['naive']:.3f} naive, {r['fits']} fits, "

@@ -102,7 +102,9 @@ class AlbedoSettings:
     residuals set the level that weights and the homogeneity test use.
     specular_uncertainty: relative 1-sigma error of the shared specular S at an
     observation (a blunted scan's normals move the highlight). prior_sigma: relative
-    1-sigma trust in the scan's texture as the albedo (after its per-channel scale).
+    1-sigma trust in the scan's texture as the albedo (after its per-channel scale),
+    or None (the default): weighed against the data by how far each misses the
+    other (:func:`prior_weighting`), :data:`PRIOR_SIGMA` where too few texels say.
     max_relative_error: a texel is MEASURED when its data alone give its albedo to
     this relative standard error. p_level: significance of the albedo's variation
     (F test) below which the region is textured. iterations: IRLS rounds.
@@ -111,7 +113,7 @@ class AlbedoSettings:
 
     noise: float = 0.01
     specular_uncertainty: float = 0.5
-    prior_sigma: float = 0.25
+    prior_sigma: float | None = None
     max_relative_error: float = 0.5
     p_level: float = 1e-3
     iterations: int = 6
@@ -121,6 +123,8 @@ class AlbedoSettings:
         for name in ("noise", "specular_uncertainty", "prior_sigma", "max_relative_error",
                      "shape_sigma"):
             value = getattr(self, name)
+            if name == "prior_sigma" and value is None:
+                continue
             if not (np.isfinite(value) and value > 0.0):
                 raise ValueError(f"albedo setting {name} must be a positive number, got {value!r}")
         if not (np.isfinite(self.p_level) and 0.0 < self.p_level < 1.0):
@@ -253,7 +257,7 @@ def _rows(name: str, a, n: int) -> np.ndarray:
 
 
 def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, views=None,
-             settings: AlbedoSettings | None = None) -> AlbedoMap:
+             sensitivity=None, settings: AlbedoSettings | None = None) -> AlbedoMap:
     """The per-texel albedo of one region (see the module docstring).
 
     texel: (N,) int, each observation's flat texel (:func:`texel_index`; -1 for
@@ -268,7 +272,11 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     see the module docstring). views: (N,) int, the photo each
     observation comes from, or None: with them a texture must also predict each
     photo's observations from the other photos better than one colour does
-    (:func:`held_out_misfits`).
+    (:func:`held_out_misfits`). sensitivity: (N,) >= 0, how far each observation
+    moves, relative, per radian its normal turns (the caller's model: the light's
+    slant and the table's slope, ``core.method.textured.normal_sensitivity``), or
+    None: with it and a prior the data's error grows with it where the scan's
+    normals are off (:func:`prior_weighting`).
 
     ValueError (one sentence) for shapes that do not match, NaN or Inf in the
     observations, negative diffuse, or when no observation constrains any texel.
@@ -307,6 +315,12 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
                 n and views.min() < 0):
             raise ValueError(f"views must be {n} photo indices >= 0, got {views.dtype} "
                              f"{views.shape}")
+    if sensitivity is not None:
+        sensitivity = np.asarray(sensitivity, dtype=np.float64)
+        if sensitivity.shape != (n,) or not np.isfinite(sensitivity).all() or (
+                sensitivity < 0.0).any():
+            raise ValueError(f"sensitivity must be {n} finite values >= 0, "
+                             f"got {sensitivity.shape}")
     keep = texel >= 0
     texel, rho, diffuse, specular = texel[keep], rho[keep], diffuse[keep], specular[keep]
     bins, n_bins = (None, 0) if cells is None else shape_bins(cells[keep])
@@ -356,15 +370,25 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     textured = [s["p"] < settings.p_level and s["spread"] > s["noise"] for s in channel_stats]
     predicts = held_out is None or held_out["observations"] < _MIN_HELD_OUT or (
         held_out["textured"] < HELD_OUT_MARGIN * held_out["constant"])
+    agreement = None if prior is None else prior_agreement(a, measured, prior, settings.p_level)
+    if agreement is not None and agreement["agrees"]:
+        # the scan's texture, made from other photos, shows the data's pattern: the
+        # variation is the surface's, even where one view's shading error also varies
+        predicts = True
     constant = not (any(textured) and predicts)
     # the region's colour: its one value (the estimate of least variance), or the
     # mean over the measured texels (each texel as much surface as another)
     reference = weighted if constant else a[measured].mean(axis=0)
 
     albedo = np.where(measured[:, None], a, np.nan)
-    prior_scale = None
+    prior_scale, weighting = None, None
     if prior is not None:
-        prior_scale, albedo = _with_prior(a, h, measured, prior, reference, settings)
+        slant = None
+        if sensitivity is not None:  # each texel's mean squared sensitivity
+            slant = np.bincount(texel, sensitivity[keep] ** 2, minlength=n_texels) / \
+                np.maximum(count, 1)
+        prior_scale, albedo, weighting = _with_prior(a, h, measured, prior, reference,
+                                                     settings, slant)
 
     coverage = np.full(n_texels, FILLED, dtype=np.uint8)
     if prior is not None and not constant:  # a constant region takes nothing from it
@@ -385,7 +409,8 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
         stats={"channels": channel_stats, "texels": counts,
                "misfit": log_misfit(rho, predicted), "held_out": held_out,
                "shape_correction": correction,
-               "prior_scale": None if prior_scale is None else prior_scale.tolist()},
+               "prior_scale": None if prior_scale is None else prior_scale.tolist(),
+               "prior_weighting": weighting, "prior_agreement": agreement},
     )
 
 
@@ -595,27 +620,131 @@ def _variation(a, h, reference, dof_within, noise, settings) -> dict:
             "noise_from": "residuals" if dof_within >= _MIN_NOISE_DOF else "assumed"}
 
 
-def _with_prior(a, h, measured, prior, reference, settings):
+def _with_prior(a, h, measured, prior, reference, settings, slant=None):
     """The prior's per-channel scale k (3,) (the median of log(a / p) over measured
-    texels with a prior, each texel once; NaN where there is none) and the albedo
-    (T, 3): the data and k p_t combined by precision where the prior has a value,
-    the data alone where it has not, NaN where neither."""
+    texels with a prior, each texel once; NaN where there is none), the albedo
+    (T, 3): the data and k p_t combined by their relative variances
+    (:func:`prior_weighting`) where the prior has a value, the data alone where it
+    has not, NaN where neither; and the weighting's record (dict)."""
     has = np.isfinite(prior)
     p = np.where(has, prior, 0.0)
-    data_h = np.where(measured[:, None], h, 0.0)
+    k = _prior_scale(a, measured, p, has)
+    usable = has & np.isfinite(k)
+    kp = np.where(usable, np.nan_to_num(k) * p, 0.0)
+    # relative variances, each at the larger of the two levels (so neither the
+    # darker data nor the darker prior is the more precise for being dark)
+    level = np.maximum(np.maximum(a, kp), 0.01 * np.abs(reference))
+    data_var = np.where(measured[:, None] & (h > _TINY), 1.0 / np.maximum(h, _TINY) / level**2,
+                        np.inf)
+    weighting = prior_weighting(a, kp, data_var, measured & usable.all(axis=1) & (
+        a > 0.0).all(axis=1), slant, settings)
+    if slant is not None:
+        data_var = data_var + weighting["normal_sigma"] ** 2 * slant[:, None] + \
+            weighting.get("data_sigma", 0.0) ** 2
+    data_w = np.where(np.isfinite(data_var), 1.0 / np.maximum(data_var, _TINY), 0.0)
+    prior_w = np.where(usable, 1.0 / weighting["prior_sigma"] ** 2, 0.0)
+    total = data_w + prior_w
+    mix = data_w * np.where(measured[:, None], a, 0.0) + prior_w * kp
+    out = np.where(total > 0.0, mix / np.where(total > 0.0, total, 1.0), np.nan)
+    return k, out, weighting
+
+
+def _prior_scale(a, measured, p, has) -> np.ndarray:
+    """(3,) k per channel: the median of log(a / p) over measured texels with both
+    positive, each texel once (NaN where there is none)."""
     k = np.full(3, np.nan)
     for c in range(3):
         both = measured & has[:, c] & (p[:, c] > 0.0) & (a[:, c] > 0.0)
-        if both.any():  # each texel once, on a log scale (see the docstring)
+        if both.any():  # each texel once, on a log scale (see the module docstring)
             k[c] = np.exp(np.median(np.log(a[both, c] / p[both, c])))
-    usable = has & np.isfinite(k)
-    kp = np.where(usable, np.nan_to_num(k) * p, 0.0)
-    sp = settings.prior_sigma * (kp + 0.01 * np.abs(reference))
-    prior_h = np.where(usable, 1.0 / np.maximum(sp * sp, _TINY), 0.0)
-    total = data_h + prior_h
-    mix = data_h * a + prior_h * kp
-    out = np.where(total > 0.0, mix / np.where(total > 0.0, total, 1.0), np.nan)
-    return k, out
+    return k
+
+
+def prior_agreement(a, measured, prior, p_level: float) -> dict | None:
+    """Whether the scan's texture predicts the data's albedo (a (T, 3), data only)
+    better than one colour does: per measured texel, the squared grey log ratio
+    of the data to the scaled prior against the same to one colour (the data's
+    geometric mean); they agree where the first is the smaller, one-sided
+    Wilcoxon signed-rank p below ``p_level``. The prior was made from other photos
+    than the lit ones, so a pattern both show is the surface's, however noisy the
+    data are; a prior whose pattern is not in the data (an ambient occlusion
+    baked into a plain object's texture) only adds to the ratios. None when fewer
+    than :data:`_MIN_WEIGHING` texels have both."""
+    has = np.isfinite(prior)
+    p = np.where(has, prior, 0.0)
+    k = _prior_scale(a, measured, p, has)
+    both = measured & has.all(axis=1) & (p > 0.0).all(axis=1) & (a > 0.0).all(axis=1)
+    if not np.isfinite(k).all() or both.sum() < _MIN_WEIGHING:
+        return None
+    la = np.log(a[both])
+    to_prior = np.mean(la - np.log(k * p[both]), axis=1) ** 2
+    to_one = np.mean(la - np.median(la, axis=0), axis=1) ** 2
+    p_value = float(stats.wilcoxon(to_one - to_prior, alternative="greater").pvalue)
+    return {"to_prior": float(np.median(to_prior)), "to_one": float(np.median(to_one)),
+            "p": p_value, "agrees": bool(p_value < p_level), "texels": int(both.sum())}
+
+
+PRIOR_SIGMA = 0.25  # the prior's relative error where the data cannot say
+_MIN_WEIGHING = 64  # fewer texels with both: PRIOR_SIGMA and the data's own precision
+_WEIGHING_BINS = 8  # bins of the light's slant over which the two variances are read
+_MEDIAN_CHI2_1 = 0.4549  # the median of a chi-square with one degree of freedom
+
+
+def prior_weighting(a, kp, data_var, both, slant, settings: AlbedoSettings) -> dict:
+    """How far to trust the scan's texture against the lit photos' data.
+
+    a, kp: (T, 3) the data-only albedo and the scaled prior; data_var: (T, 3) the
+    data's relative variance from its residuals; both: (T,) bool texels where both
+    are usable; slant: (T,) each texel's mean squared sensitivity to its normal
+    (g^2, :func:`estimate`'s ``sensitivity``), or None. With one light the photos
+    cannot tell an albedo from the shading of a wrong normal (the same error is in
+    every photo), so that error is read against the prior: over the texels, the
+    squared log ratio of the data to the prior is modelled as
+
+        r_t^2 = c^2 + normal_sigma^2 g_t^2 + data_var_t
+
+    (a normal wrong by an angle e moves an observation by about g e relative; the
+    prior's error does not depend on the light), fitted by non-negative least
+    squares to the medians of r^2 in :data:`_WEIGHING_BINS` bins of g^2 (robust: a
+    misregistered texel or an edge is one large r^2 among many). The intercept c^2
+    holds the prior's error and whatever of the data's the model does not explain
+    (a misplaced highlight on a metal); it is the prior's up to :data:`PRIOR_SIGMA`
+    (a scan's texture is taken to be at least that good; set ``prior_sigma`` to
+    trust it less) and the data's (``data_sigma``, every texel) beyond.
+    ``settings.prior_sigma``, when set, is used as given (and normal_sigma is 0).
+
+    Returns {"prior_sigma", "normal_sigma" (radians), "data_sigma" (when fitted),
+    "from": "setting", "data", "too few texels" or "no sensitivity" (PRIOR_SIGMA),
+    "texels"}."""
+    from scipy.optimize import nnls
+
+    n = int(np.sum(both))
+    if settings.prior_sigma is not None:
+        return {"prior_sigma": float(settings.prior_sigma), "normal_sigma": 0.0,
+                "from": "setting", "texels": n}
+    if slant is None or n < _MIN_WEIGHING:
+        return {"prior_sigma": PRIOR_SIGMA, "normal_sigma": 0.0,
+                "from": "too few texels" if slant is not None else "no sensitivity",
+                "texels": n}
+    r2 = np.mean(np.log(a[both] / kp[both]), axis=1) ** 2
+    v = np.mean(np.where(np.isfinite(data_var[both]), data_var[both], 0.0), axis=1) / 3.0
+    x = slant[both]
+    edges = np.quantile(x, np.linspace(0.0, 1.0, _WEIGHING_BINS + 1))
+    which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, _WEIGHING_BINS - 1)
+    rows, ys = [], []
+    for b in range(_WEIGHING_BINS):  # a loop over 8 bins, not texels
+        at = which == b
+        if at.sum() >= _MIN_WEIGHING // _WEIGHING_BINS:
+            rows.append([1.0, float(np.median(x[at]))])
+            ys.append(float(np.median(r2[at])) / _MEDIAN_CHI2_1 - float(np.median(v[at])))
+    if len(rows) < 2:
+        return {"prior_sigma": PRIOR_SIGMA, "normal_sigma": 0.0, "from": "too few texels",
+                "texels": n}
+    (c2, e2), _ = nnls(np.asarray(rows), np.asarray(ys))
+    p2 = min(c2, PRIOR_SIGMA**2)  # the intercept beyond the prior's usual error is the data's
+    return {"prior_sigma": float(max(np.sqrt(p2), settings.noise)),
+            "normal_sigma": float(np.sqrt(e2)), "data_sigma": float(np.sqrt(c2 - p2)),
+            "from": "data", "texels": n}
 
 
 def _fill(albedo, known, shape, reference) -> np.ndarray:

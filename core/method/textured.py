@@ -264,6 +264,8 @@ def estimate_texture(table, samples, texel, shape, settings: albedo_.AlbedoSetti
     (``albedo.uniform``; the reason says why)."""
     at = np.flatnonzero(texel >= 0)
     cells = samples.cells[at]
+    sensitivity = normal_sensitivity(samples.subset(at), lambda c: np.asarray(table)[
+        :, c[:, 0], c[:, 1], c[:, 2]].T)
     values = np.asarray(table)[:, cells[:, 0], cells[:, 1], cells[:, 2]].T
     delta = diffuse_level(table)
     fits, noise, misfit, errors = {}, {}, {}, []
@@ -272,7 +274,7 @@ def estimate_texture(table, samples, texel, shape, settings: albedo_.AlbedoSetti
         try:
             fits[name] = albedo_.estimate(texel[at], samples.rho[at], d, s, shape, prior=prior,
                                           cells=cells, views=samples.view[at],
-                                          settings=settings)
+                                          sensitivity=sensitivity, settings=settings)
         except ValueError as error:
             errors.append(str(error))
             continue
@@ -286,6 +288,32 @@ def estimate_texture(table, samples, texel, shape, settings: albedo_.AlbedoSetti
         model = "whole"
     return RegionTexture(map=fits[model], model=model, delta=delta, noise=noise,
                          misfit=misfit)
+
+
+MIN_COS = 0.05  # n.l below this counts as this in the sensitivity (tan at most 20)
+
+
+def normal_sensitivity(samples, value_at) -> np.ndarray:
+    """(N,) how far each observation moves, relative, per radian its normal turns:
+    sqrt(tan^2 theta_i + (d log rho / d theta_h)^2), the light's slant (n.l) and
+    the table's log-slope along theta_h at the observation's cell (central
+    differences over the neighbouring theta_h bins; grey, the channels' mean).
+    samples: ``observations.Samples`` (its n, l and cells); value_at: (M, 3) cells
+    -> (M, 3) the table's values (1/sr). A turn of the normal by e moves theta_i and
+    theta_h by up to e each, so g e is the observation's relative error."""
+    c = np.clip(np.sum(samples.n * samples.l, axis=1), MIN_COS, 1.0)
+    tan2 = (1.0 - c * c) / (c * c)
+    cells = np.asarray(samples.cells)
+    i = cells[:, 0]
+    lo, hi = np.maximum(i - 1, 0), np.minimum(i + 1, merl.SHAPE[0] - 1)
+    values = value_at(np.concatenate([np.column_stack([lo, cells[:, 1:]]),
+                                      np.column_stack([hi, cells[:, 1:]])]))
+    grey = np.maximum(np.mean(np.nan_to_num(values), axis=1), 1e-12)
+    theta = merl.angles_from_cells(np.column_stack([np.concatenate([lo, hi]),
+                                                    np.zeros((2 * len(i), 2), dtype=int)]))[0]
+    n = len(i)
+    slope = (np.log(grey[n:]) - np.log(grey[:n])) / np.maximum(theta[n:] - theta[:n], 1e-9)
+    return np.sqrt(tan2 + slope * slope)
 
 
 def initial_albedo(basis: Basis, samples, texel, shape, settings: albedo_.AlbedoSettings,
@@ -307,6 +335,8 @@ def initial_albedo(basis: Basis, samples, texel, shape, settings: albedo_.Albedo
         delta = diffuse_level(table)
         values = rec.rho_at(merl.linear_index(part.cells))
         m = albedo_.estimate(texel, part.rho, values, np.zeros_like(values), shape, prior=prior,
+                             sensitivity=normal_sensitivity(
+                                 part, lambda cells, rec=rec: rec.rho_at(merl.linear_index(cells))),
                              settings=settings)
         # normalised as the diffuse model does: scaling the highlights with the colour
         # put spurious peaks on dark texels (glossy plastic: first fit 0.38 against 0.12)
