@@ -32,9 +32,18 @@ closed-form and vectorised with ``bincount``):
   texels of the data's ratio to it, on a log scale: each texel counts once, so
   the darkest texels, whose data are the most precise under relative noise, do
   not set it where they are wrong: a shadow, a misregistered texel) and
-  trusted to ``s_p = prior_sigma * k p_t`` (relative). Where no lit photo sees a
-  texel the prior alone gives it; where there is neither, the nearest texel that
-  has a value fills it (in the UV image).
+  trusted to ``s_p = prior_sigma * k p_t`` (relative). With one light the photos
+  cannot tell a texel's albedo from the shading of a normal the scan has wrong
+  (the error is the same in every photo), so the data's trust is not their
+  precision alone: :func:`prior_weighting` splits the squared log ratio of data
+  to prior over the texels into the prior's error and the data's, which grows
+  with each observation's sensitivity to its normal (``sensitivity``); both
+  variances then weigh the mix (``prior_sigma`` None, the default; a number fixes
+  it). Where the prior's pattern predicts the data's better than one colour does
+  (:func:`prior_agreement`), the region is textured even when the photos' own
+  held-out test is not sure (a blunted metal's texels vary from view to view).
+  Where no lit photo sees a texel the prior alone gives it; where there is
+  neither, the nearest texel that has a value fills it (in the UV image).
 
 **The shared shape, corrected per bin.** Given the observations' MERL cells, the
 shape is also corrected by a factor per coarse bin of directions

@@ -136,7 +136,9 @@ class RegionTexture:
                 "noise": self.noise, "misfit": self.misfit,
                 "reference": m.reference.tolist(),
                 "diffuse_level": self.delta.tolist(), "texels": m.stats["texels"],
-                "prior_scale": m.stats["prior_scale"]}
+                "prior_scale": m.stats["prior_scale"],
+                "prior_weighting": m.stats.get("prior_weighting"),
+                "prior_agreement": m.stats.get("prior_agreement")}
 
 
 @dataclasses.dataclass(eq=False)
