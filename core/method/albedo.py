@@ -392,12 +392,22 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     albedo = np.where(measured[:, None], a, np.nan)
     prior_scale, weighting = None, None
     if prior is not None:
-        slant = None
-        if sensitivity is not None:  # each texel's mean squared sensitivity
-            slant = np.bincount(texel, sensitivity[keep] ** 2, minlength=n_texels) / \
-                np.maximum(count, 1)
+        slant, view_var = None, None
+        if sensitivity is not None:
+            # each texel's sensitivity, squared: the mean over its observations with
+            # the fit's weights (one normal error moves them all, and the estimate
+            # heeds each as much as its weight; a highlight's flank, weighted down,
+            # does not make the texel's estimate sensitive)
+            weight = np.mean([f["weight"] for f in fits], axis=0)
+            wg = np.bincount(local, weight * sensitivity[keep], minlength=len(used))
+            wsum = np.bincount(local, weight, minlength=len(used))
+            slant = np.zeros(n_texels)
+            slant[used] = (wg / np.maximum(wsum, _TINY)) ** 2
+        if views is not None:
+            view_var = _view_variance(local, views, rho, diffuse, specular, fits, used,
+                                      n_texels)
         prior_scale, albedo, weighting = _with_prior(a, h, measured, prior, reference,
-                                                     settings, slant)
+                                                     settings, slant, view_var)
 
     coverage = np.full(n_texels, FILLED, dtype=np.uint8)
     if prior is not None and not constant:  # a constant region takes nothing from it
@@ -629,7 +639,43 @@ def _variation(a, h, reference, dof_within, noise, settings) -> dict:
             "noise_from": "residuals" if dof_within >= _MIN_NOISE_DOF else "assumed"}
 
 
-def _with_prior(a, h, measured, prior, reference, settings, slant=None):
+def _view_variance(texel, views, rho, d, s, fits, used, n_texels) -> np.ndarray | None:
+    """(T,) the relative variance of each texel's data-only albedo that comes from
+    the photos disagreeing: each photo's own estimate of the texel (the fits'
+    weights and shape correction, so highlights count as little as in the fit),
+    its squared grey log deviation from the texel's estimate pooled over texels
+    that two or more photos see (median, as a chi-square's; times m / (m - 1) for
+    a deviation from a mean that holds it), over the m photos that see each texel.
+    A highlight a blunted scan misplaces moves with the view, so this is the part
+    of the data's error the photos show. texel: (N,) local ids; used: their global
+    texels. None when no texel is seen by two photos."""
+    n_views = int(views.max(initial=0)) + 1
+    pair_id, pair = np.unique(texel * n_views + views, return_inverse=True)
+    pair = pair.reshape(-1)
+    owner = pair_id // n_views
+    logs = []
+    for c, f in enumerate(fits):  # three channels
+        dm = f["mi"] * d[:, c]
+        num = np.bincount(pair, f["weight"] * dm * (rho[:, c] - f["mi"] * s[:, c]),
+                          minlength=len(pair_id))
+        den = np.bincount(pair, f["weight"] * dm * dm, minlength=len(pair_id))
+        a_pair = np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), np.nan)
+        logs.append(np.log(np.where((a_pair > 0.0) & (f["a"][owner] > 0.0),
+                                    a_pair / np.where(f["a"][owner] > 0.0, f["a"][owner], 1.0),
+                                    np.nan)))
+    dev = np.mean(logs, axis=0)
+    photos = np.bincount(owner, minlength=len(used))
+    m = photos[owner]
+    ok = np.isfinite(dev) & (m >= 2)
+    if not ok.any():
+        return None
+    sigma2 = float(np.median(dev[ok] ** 2 * m[ok] / (m[ok] - 1.0))) / _MEDIAN_CHI2_1
+    out = np.zeros(n_texels)
+    out[used] = sigma2 / np.maximum(photos, 1)
+    return out
+
+
+def _with_prior(a, h, measured, prior, reference, settings, slant=None, view_var=None):
     """The prior's per-channel scale k (3,) (the median of log(a / p) over measured
     texels with a prior, each texel once; NaN where there is none), the albedo
     (T, 3): the data and k p_t combined by their relative variances
@@ -645,11 +691,12 @@ def _with_prior(a, h, measured, prior, reference, settings, slant=None):
     level = np.maximum(np.maximum(a, kp), 0.01 * np.abs(reference))
     data_var = np.where(measured[:, None] & (h > _TINY), 1.0 / np.maximum(h, _TINY) / level**2,
                         np.inf)
+    if view_var is not None:
+        data_var = data_var + view_var[:, None]
     weighting = prior_weighting(a, kp, data_var, measured & usable.all(axis=1) & (
         a > 0.0).all(axis=1), slant, settings)
     if slant is not None:
-        data_var = data_var + weighting["normal_sigma"] ** 2 * slant[:, None] + \
-            weighting.get("data_sigma", 0.0) ** 2
+        data_var = data_var + weighting["normal_sigma"] ** 2 * slant[:, None]
     data_w = np.where(np.isfinite(data_var), 1.0 / np.maximum(data_var, _TINY), 0.0)
     prior_w = np.where(usable, 1.0 / weighting["prior_sigma"] ** 2, 0.0)
     total = data_w + prior_w
@@ -703,28 +750,27 @@ def prior_weighting(a, kp, data_var, both, slant, settings: AlbedoSettings) -> d
     """How far to trust the scan's texture against the lit photos' data.
 
     a, kp: (T, 3) the data-only albedo and the scaled prior; data_var: (T, 3) the
-    data's relative variance from its residuals; both: (T,) bool texels where both
+    data's relative variance from its residuals and, where the photos say, from
+    how far one photo's observations miss another's (the held-out misfit over the
+    photos that see the texel: a highlight a blunted scan misplaces moves with the
+    view); both: (T,) bool texels where both
     are usable; slant: (T,) each texel's mean squared sensitivity to its normal
     (g^2, :func:`estimate`'s ``sensitivity``), or None. With one light the photos
     cannot tell an albedo from the shading of a wrong normal (the same error is in
     every photo), so that error is read against the prior: over the texels, the
     squared log ratio of the data to the prior is modelled as
 
-        r_t^2 = c^2 + normal_sigma^2 g_t^2 + data_var_t
+        r_t^2 = prior_sigma^2 + normal_sigma^2 g_t^2 + data_var_t
 
     (a normal wrong by an angle e moves an observation by about g e relative; the
     prior's error does not depend on the light), fitted by non-negative least
     squares to the medians of r^2 in :data:`_WEIGHING_BINS` bins of g^2 (robust: a
-    misregistered texel or an edge is one large r^2 among many). The intercept c^2
-    holds the prior's error and whatever of the data's the model does not explain
-    (a misplaced highlight on a metal); it is the prior's up to :data:`PRIOR_SIGMA`
-    (a scan's texture is taken to be at least that good; set ``prior_sigma`` to
-    trust it less) and the data's (``data_sigma``, every texel) beyond.
+    misregistered texel or an edge is one large r^2 among many); the intercept is
+    the prior's (at least ``settings.noise``).
     ``settings.prior_sigma``, when set, is used as given (and normal_sigma is 0).
 
-    Returns {"prior_sigma", "normal_sigma" (radians), "data_sigma" (when fitted),
-    "from": "setting", "data", "too few texels" or "no sensitivity" (PRIOR_SIGMA),
-    "texels"}."""
+    Returns {"prior_sigma", "normal_sigma" (radians), "from": "setting", "data",
+    "too few texels" or "no sensitivity" (PRIOR_SIGMA), "texels"}."""
     from scipy.optimize import nnls
 
     n = int(np.sum(both))
@@ -749,11 +795,9 @@ def prior_weighting(a, kp, data_var, both, slant, settings: AlbedoSettings) -> d
     if len(rows) < 2:
         return {"prior_sigma": PRIOR_SIGMA, "normal_sigma": 0.0, "from": "too few texels",
                 "texels": n}
-    (c2, e2), _ = nnls(np.asarray(rows), np.asarray(ys))
-    p2 = min(c2, PRIOR_SIGMA**2)  # the intercept beyond the prior's usual error is the data's
+    (p2, e2), _ = nnls(np.asarray(rows), np.asarray(ys))
     return {"prior_sigma": float(max(np.sqrt(p2), settings.noise)),
-            "normal_sigma": float(np.sqrt(e2)), "data_sigma": float(np.sqrt(c2 - p2)),
-            "from": "data", "texels": n}
+            "normal_sigma": float(np.sqrt(e2)), "from": "data", "texels": n}
 
 
 def _fill(albedo, known, shape, reference) -> np.ndarray:
