@@ -37,7 +37,9 @@ closed-form and vectorised with ``bincount``):
   (the error is the same in every photo), so the data's trust is not their
   precision alone: :func:`prior_weighting` splits the squared log ratio of data
   to prior over the texels into the prior's error and the data's, which grows
-  with each observation's sensitivity to its normal (``sensitivity``); both
+  with each observation's sensitivity to its normal (``sensitivity``), beside
+  the data's variance that the photos do show (what each photo's own estimate of
+  a texel misses of the others', :func:`_view_variance`); both
   variances then weigh the mix (``prior_sigma`` None, the default; a number fixes
   it). Where the prior's pattern predicts the data's better than one colour does
   (:func:`prior_agreement`), the region is textured even when the photos' own
