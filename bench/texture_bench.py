@@ -37,10 +37,15 @@ KL) and the default basis without the material (``common.default_basis_without``
   of the method on the same photos untextured (``untextured``:
   the photos made with a texture of 1) and on the textured photos as they are
   (``naive``);
-- the model chosen, whether the region got a constant, the fits made, seconds.
+- the model chosen, whether the region got a constant, the fits made, seconds;
+- ``with_scan_texture``: the same textured run given the scan's own texture as
+  the prior, as the extension runs (:func:`scan_texture`, a photogrammetry bake
+  simulated with the ambient occlusion and the sky's reflection): its albedo and
+  sphere errors, the texture's own pattern error, the prior's weighing and
+  agreement (``core.method.albedo``).
 
 Writes ``bench/results/texture.json`` and ``texture.png`` (``--quick``:
-``texture_quick.*``, 4 materials). About 20 minutes per seed on the 2-core machine.
+``texture_quick.*``, 4 materials). About 34 minutes per seed on the 2-core machine.
 """
 
 from __future__ import annotations
