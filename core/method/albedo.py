@@ -753,14 +753,14 @@ def prior_weighting(a, kp, data_var, both, slant, settings: AlbedoSettings) -> d
 
     a, kp: (T, 3) the data-only albedo and the scaled prior; data_var: (T, 3) the
     data's relative variance from its residuals and, where the photos say, from
-    how far one photo's observations miss another's (the held-out misfit over the
-    photos that see the texel: a highlight a blunted scan misplaces moves with the
-    view); both: (T,) bool texels where both
-    are usable; slant: (T,) each texel's mean squared sensitivity to its normal
-    (g^2, :func:`estimate`'s ``sensitivity``), or None. With one light the photos
-    cannot tell an albedo from the shading of a wrong normal (the same error is in
-    every photo), so that error is read against the prior: over the texels, the
-    squared log ratio of the data to the prior is modelled as
+    how far each photo's own estimate of the texel misses the others'
+    (:func:`_view_variance`: a highlight a blunted scan misplaces moves with the
+    view); both: (T,) bool texels where both are usable; slant: (T,) each texel's
+    sensitivity to its normal squared (g^2: the mean of :func:`estimate`'s
+    ``sensitivity`` over its observations with the fit's weights), or None. With
+    one light the photos cannot tell an albedo from the shading of a wrong normal
+    (the same error is in every photo), so that error is read against the prior:
+    over the texels, the squared log ratio of the data to the prior is modelled as
 
         r_t^2 = prior_sigma^2 + normal_sigma^2 g_t^2 + data_var_t
 

@@ -333,3 +333,31 @@ def test_the_model_is_the_one_that_misses_the_observations_less(heldout_tables, 
     measured = t.map.coverage == albedo.MEASURED
     truth = tex[measured] / tex[measured].mean(axis=0)
     assert np.median(np.abs(t.relative()[measured] - truth) / truth) <= 0.02
+
+
+def test_the_normal_sensitivity_is_the_lights_slant_on_a_lambertian_and_grows_on_a_lobes_flank():
+    """g = sqrt(tan^2 theta_i + (d log rho / d theta_h)^2): a constant table has no
+    slope, so g is tan(theta_i) exactly; a narrow lobe adds its log-slope."""
+    import types
+
+    from brdf_reconstruct.core.brdf import merl
+
+    rng = np.random.default_rng(2)
+    n = np.tile([0.0, 0.0, 1.0], (200, 1))
+    theta = rng.uniform(0.0, 1.2, 200)
+    l = np.column_stack([np.sin(theta), np.zeros(200), np.cos(theta)])  # noqa: E741
+    v = np.tile([0.0, 0.0, 1.0], (200, 1))
+    samples = types.SimpleNamespace(n=n, l=l, cells=merl.cells_about_normals(n, l, v))
+    flat = textured.normal_sensitivity(samples, lambda c: np.full((len(c), 3), 0.3))
+    np.testing.assert_allclose(flat, np.tan(theta), rtol=1e-9)
+    th = merl.angles_from_cells(samples.cells)[0]
+
+    def lobe(c):  # exp(-theta_h^2 / (2 0.05^2)): d log rho / d theta_h = -theta_h / 0.05^2
+        t = merl.angles_from_cells(c)[0]
+        return np.repeat(np.exp(-t**2 / (2 * 0.05**2))[:, None], 3, axis=1)
+
+    steep = textured.normal_sensitivity(samples, lobe)
+    assert (steep >= flat - 1e-9).all()
+    inner = (samples.cells[:, 0] > 0) & (samples.cells[:, 0] < 89) & (th > 0.05) & (th < 0.3)
+    np.testing.assert_allclose(steep[inner], np.hypot(np.tan(theta[inner]), th[inner] / 0.05**2),
+                               rtol=0.1)
