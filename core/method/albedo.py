@@ -381,7 +381,9 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     textured = [s["p"] < settings.p_level and s["spread"] > s["noise"] for s in channel_stats]
     predicts = held_out is None or held_out["observations"] < _MIN_HELD_OUT or (
         held_out["textured"] < HELD_OUT_MARGIN * held_out["constant"])
-    agreement = None if prior is None else prior_agreement(a, measured, prior, settings.p_level)
+    k = None if prior is None else _prior_scale(a, measured, prior)
+    agreement = None if prior is None else prior_agreement(a, measured, prior, k,
+                                                           settings.p_level)
     if agreement is not None and agreement["agrees"]:
         # the scan's texture, made from other photos, shows the data's pattern: the
         # variation is the surface's, even where one view's shading error also varies
@@ -392,7 +394,7 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     reference = weighted if constant else a[measured].mean(axis=0)
 
     albedo = np.where(measured[:, None], a, np.nan)
-    prior_scale, weighting = None, None
+    weighting = None
     if prior is not None:
         slant, view_var = None, None
         if sensitivity is not None:
@@ -408,8 +410,8 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
         if views is not None:
             view_var = _view_variance(local, views, rho, diffuse, specular, fits, used,
                                       n_texels)
-        prior_scale, albedo, weighting = _with_prior(a, h, measured, prior, reference,
-                                                     settings, slant, view_var)
+        albedo, weighting = _with_prior(a, h, measured, prior, k, reference, settings, slant,
+                                        view_var)
 
     coverage = np.full(n_texels, FILLED, dtype=np.uint8)
     if prior is not None and not constant:  # a constant region takes nothing from it
@@ -430,7 +432,7 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
         stats={"channels": channel_stats, "texels": counts,
                "misfit": log_misfit(rho, predicted), "held_out": held_out,
                "shape_correction": correction,
-               "prior_scale": None if prior_scale is None else prior_scale.tolist(),
+               "prior_scale": None if k is None else k.tolist(),
                "prior_weighting": weighting, "prior_agreement": agreement},
     )
 
@@ -677,15 +679,13 @@ def _view_variance(texel, views, rho, d, s, fits, used, n_texels) -> np.ndarray 
     return out
 
 
-def _with_prior(a, h, measured, prior, reference, settings, slant=None, view_var=None):
-    """The prior's per-channel scale k (3,) (the median of log(a / p) over measured
-    texels with a prior, each texel once; NaN where there is none), the albedo
-    (T, 3): the data and k p_t combined by their relative variances
+def _with_prior(a, h, measured, prior, k, reference, settings, slant=None, view_var=None):
+    """The albedo (T, 3), given the prior's per-channel scale k (3,)
+    (:func:`_prior_scale`): the data and k p_t combined by their relative variances
     (:func:`prior_weighting`) where the prior has a value, the data alone where it
     has not, NaN where neither; and the weighting's record (dict)."""
     has = np.isfinite(prior)
     p = np.where(has, prior, 0.0)
-    k = _prior_scale(a, measured, p, has)
     usable = has & np.isfinite(k)
     kp = np.where(usable, np.nan_to_num(k) * p, 0.0)
     # relative variances, each at the larger of the two levels (so neither the
@@ -704,12 +704,14 @@ def _with_prior(a, h, measured, prior, reference, settings, slant=None, view_var
     total = data_w + prior_w
     mix = data_w * np.where(measured[:, None], a, 0.0) + prior_w * kp
     out = np.where(total > 0.0, mix / np.where(total > 0.0, total, 1.0), np.nan)
-    return k, out, weighting
+    return out, weighting
 
 
-def _prior_scale(a, measured, p, has) -> np.ndarray:
+def _prior_scale(a, measured, prior) -> np.ndarray:
     """(3,) k per channel: the median of log(a / p) over measured texels with both
     positive, each texel once (NaN where there is none)."""
+    has = np.isfinite(prior)
+    p = np.where(has, prior, 0.0)
     k = np.full(3, np.nan)
     for c in range(3):
         both = measured & has[:, c] & (p[:, c] > 0.0) & (a[:, c] > 0.0)
@@ -718,7 +720,7 @@ def _prior_scale(a, measured, p, has) -> np.ndarray:
     return k
 
 
-def prior_agreement(a, measured, prior, p_level: float) -> dict | None:
+def prior_agreement(a, measured, prior, k, p_level: float) -> dict | None:
     """Whether the scan's texture predicts the data's albedo (a (T, 3), data only)
     better than one colour does: per measured texel, the squared grey log ratio
     of the data to the scaled prior against the same to one colour (the data's
@@ -726,11 +728,11 @@ def prior_agreement(a, measured, prior, p_level: float) -> dict | None:
     Wilcoxon signed-rank p below ``p_level``. The prior was made from other photos
     than the lit ones, so a pattern both show is the surface's, however noisy the
     data are; a prior whose pattern is not in the data (an ambient occlusion
-    baked into a plain object's texture) only adds to the ratios. None when fewer
-    than :data:`_MIN_WEIGHING` texels have both."""
+    baked into a plain object's texture) only adds to the ratios. k: (3,) the
+    prior's scale (:func:`_prior_scale`). None when fewer than
+    :data:`_MIN_WEIGHING` texels have both."""
     has = np.isfinite(prior)
     p = np.where(has, prior, 0.0)
-    k = _prior_scale(a, measured, p, has)
     both = measured & has.all(axis=1) & (p > 0.0).all(axis=1) & (a > 0.0).all(axis=1)
     if not np.isfinite(k).all() or both.sum() < _MIN_WEIGHING:
         return None

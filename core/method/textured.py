@@ -266,9 +266,13 @@ def estimate_texture(table, samples, texel, shape, settings: albedo_.AlbedoSetti
     (``albedo.uniform``; the reason says why)."""
     at = np.flatnonzero(texel >= 0)
     cells = samples.cells[at]
-    sensitivity = normal_sensitivity(samples.subset(at), lambda c: np.asarray(table)[
-        :, c[:, 0], c[:, 1], c[:, 2]].T)
-    values = np.asarray(table)[:, cells[:, 0], cells[:, 1], cells[:, 2]].T
+    table = np.asarray(table)
+
+    def at_cells(c):  # (M, 3) cells -> (M, 3) the table's values
+        return table[:, c[:, 0], c[:, 1], c[:, 2]].T
+
+    sensitivity = normal_sensitivity(samples.subset(at), at_cells)
+    values = at_cells(cells)
     delta = diffuse_level(table)
     fits, noise, misfit, errors = {}, {}, {}, []
     for name, cap in MODELS.items():
