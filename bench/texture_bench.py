@@ -168,13 +168,13 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
     seconds = time.perf_counter() - t0
     region = result.result.regions[0]
     t = result.textures[0]
-    measured = t.map.coverage == albedo.MEASURED
+    measured = t.map.measured
     prior = scan_texture(arrays, colour, rest, tex, shape, arrays["ambient"],
                          registration=registration if spot is not None else "truth", seed=seed)
     with_prior = textured.run(basis, photos, settings, textured.TextureSettings(shape=shape),
                               prior=prior)
     tp = with_prior.textures[0]
-    seen_p = (tp.map.coverage == albedo.MEASURED) & np.isfinite(prior.reshape(-1, 3)).all(1)
+    seen_p = tp.map.measured & np.isfinite(prior.reshape(-1, 3)).all(1)
     # the shared table is at the region's reference color, the mean albedo over the
     # measured texels (core.method.albedo): only the product of table and texture is
     # observed, so its truth is the true table with the true texture's mean over the
@@ -182,7 +182,7 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
     mean = tex[measured].mean(axis=0) if measured.any() else np.ones(3)
     at_reference = rest + colour * mean[:, None, None, None]
     floor = _floor(table, photos, tex, shape)
-    mean_p = tex[tp.map.coverage == albedo.MEASURED].mean(axis=0)
+    mean_p = tex[tp.map.measured].mean(axis=0)
     return {
         "object": "numpy" if spot is None else "spot", "material": name, "scan": scan,
         "registration": registration if spot is not None else "truth",
@@ -197,6 +197,7 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
             "sphere": metrics.sphere_error(with_prior.result.regions[0].table,
                                            rest + colour * mean_p[:, None, None, None]),
             "constant": bool(tp.map.constant), "model": tp.model,
+            "pattern": tp.map.stats["pattern"],
             "weighting": tp.map.stats.get("prior_weighting"),
             "agreement": tp.map.stats.get("prior_agreement")},
         "sphere": {"textured": metrics.sphere_error(region.table, at_reference),
@@ -278,9 +279,10 @@ def scan_texture(arrays: dict, colour, rest, texture, shape, ambient, *,
 
 
 def pattern_error(t: textured.RegionTexture, tex: np.ndarray) -> float:
-    """The median over measured texels of the relative error of the texture's
-    pattern (estimate and truth each over their mean on those texels)."""
-    measured = t.map.coverage == albedo.MEASURED
+    """The median over measured texels (``AlbedoMap.measured``: the data alone give
+    them, whether or not the value is the data's) of the relative error of the
+    texture's pattern (estimate and truth each over their mean on those texels)."""
+    measured = t.map.measured
     return _relative_pattern_error(t.relative()[measured], tex[measured])
 
 

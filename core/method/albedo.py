@@ -46,6 +46,15 @@ closed-form and vectorised with ``bincount``):
   held-out test is not sure (a blunted metal's texels vary from view to view).
   Where no lit photo sees a texel the prior alone gives it; where there is
   neither, the nearest texel that has a value fills it (in the UV image).
+  **A region the photos cannot tell from one colour keeps the scan's texture**
+  (``stats["pattern"] == "scan texture"``, its texels INFERRED), unless one
+  colour predicts the data's albedo significantly better than the texture's
+  pattern does (``prior_agreement``'s ``rejects``: an ambient occlusion baked
+  into a plain object's texture). One colour is surely wrong where the texture
+  varies, and the user's texture is the better bet: on a blunted scan a
+  mirror's data are too far off to show a 17:1 texture that the scan's
+  texture holds to 1 % (degraded Spot's silver, aluminium and copper: 0.35 to
+  0.39 with one colour, 0.007 to 0.010 kept).
 
 **The shared shape, corrected per bin.** Given the observations' MERL cells, the
 shape is also corrected by a factor per coarse bin of directions
@@ -155,7 +164,12 @@ class AlbedoMap:
     FILLED. observations: (height * width,) int64, observations per texel.
     reference: (3,) the region's colour: the mean albedo over the measured texels,
     or its one value when ``constant`` (the precision-weighted mean). constant:
-    the region got one albedo. reason: one sentence saying why. stats: per
+    the region got one albedo. reason: one sentence saying why. measured:
+    (height * width,) bool, the texels whose data alone give their albedo to
+    ``max_relative_error`` (coverage MEASURED, unless the scan's texture was kept
+    for the region: then INFERRED), or None. stats: ``pattern`` (where the
+    texture's pattern came from: "one colour", "photos", "photos and scan
+    texture" or "scan texture"); per
     channel ``F``, ``p``, ``spread`` (the albedo's relative spread beyond its
     estimation noise), ``noise`` (the photos' relative noise as the residuals show
     it); ``prior_scale`` (3,) or None; counts per coverage code; ``misfit``
@@ -173,6 +187,7 @@ class AlbedoMap:
     constant: bool
     reason: str
     stats: dict
+    measured: np.ndarray | None = None
 
     def image(self) -> np.ndarray:
         """(height, width, 3) float32 albedo image, row 0 at the top."""
@@ -203,10 +218,10 @@ def uniform(shape, reason: str) -> AlbedoMap:
     return AlbedoMap(shape=(height, width), albedo=np.ones((n, 3)),
                      coverage=np.full(n, FILLED, dtype=np.uint8),
                      observations=np.zeros(n, dtype=np.int64), reference=np.ones(3),
-                     constant=True, reason=reason,
-                     stats={"channels": [], "texels": {COVERAGE_NAMES[FILLED]: n,
-                                                       COVERAGE_NAMES[INFERRED]: 0,
-                                                       COVERAGE_NAMES[MEASURED]: 0},
+                     constant=True, reason=reason, measured=np.zeros(n, dtype=bool),
+                     stats={"channels": [], "pattern": "one colour",
+                            "texels": {COVERAGE_NAMES[FILLED]: n, COVERAGE_NAMES[INFERRED]: 0,
+                                       COVERAGE_NAMES[MEASURED]: 0},
                             "prior_scale": None})
 
 
@@ -389,13 +404,22 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
         # variation is the surface's, even where one view's shading error also varies
         predicts = True
     constant = not (any(textured) and predicts)
+    # neither can the photos tell the texture's pattern from one colour nor one colour
+    # from the pattern: the scan's texture is kept (the user's texture is the better
+    # bet than one colour, which is surely wrong where the texture varies)
+    kept = bool(constant and agreement is not None and not agreement["rejects"])
+    constant = constant and not kept
     # the region's colour: its one value (the estimate of least variance), or the
     # mean over the measured texels (each texel as much surface as another)
     reference = weighted if constant else a[measured].mean(axis=0)
 
     albedo = np.where(measured[:, None], a, np.nan)
     weighting = None
-    if prior is not None:
+    if kept:
+        has = np.isfinite(prior).all(axis=1)
+        albedo = np.where(has[:, None], k * np.where(has[:, None], prior, 0.0), np.nan)
+        reference = albedo[measured & has].mean(axis=0)
+    elif prior is not None:
         slant, view_var = None, None
         if sensitivity is not None:
             # each texel's sensitivity, squared: the mean over its observations with
@@ -416,7 +440,8 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     coverage = np.full(n_texels, FILLED, dtype=np.uint8)
     if prior is not None and not constant:  # a constant region takes nothing from it
         coverage[np.isfinite(prior).all(axis=1) & np.isfinite(albedo).all(axis=1)] = INFERRED
-    coverage[measured] = MEASURED
+    if not kept:  # kept: every value is the scan's texture's, the photos set its scale
+        coverage[measured] = MEASURED
     if constant:
         albedo = np.broadcast_to(reference, (n_texels, 3)).copy()
     else:
@@ -424,12 +449,14 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     albedo = np.maximum(albedo, 0.0)
     if correction is not None:
         correction["range"] = [[float(f["m"].min()), float(f["m"].max())] for f in fits]
-    reason = _reason(constant, channel_stats, settings, held_out)
+    reason = _reason(constant, channel_stats, settings, held_out, agreement if kept else None)
+    pattern = ("one colour" if constant else "scan texture" if kept
+               else "photos" if prior is None else "photos and scan texture")
     counts = {COVERAGE_NAMES[code]: int(np.sum(coverage == code)) for code in COVERAGE_NAMES}
     return AlbedoMap(
         shape=(height, width), albedo=albedo, coverage=coverage, observations=count,
-        reference=reference, constant=constant, reason=reason,
-        stats={"channels": channel_stats, "texels": counts,
+        reference=reference, constant=constant, reason=reason, measured=measured,
+        stats={"channels": channel_stats, "texels": counts, "pattern": pattern,
                "misfit": log_misfit(rho, predicted), "held_out": held_out,
                "shape_correction": correction,
                "prior_scale": None if k is None else k.tolist(),
@@ -728,8 +755,11 @@ def prior_agreement(a, measured, prior, k, p_level: float) -> dict | None:
     Wilcoxon signed-rank p below ``p_level``. The prior was made from other photos
     than the lit ones, so a pattern both show is the surface's, however noisy the
     data are; a prior whose pattern is not in the data (an ambient occlusion
-    baked into a plain object's texture) only adds to the ratios. k: (3,) the
-    prior's scale (:func:`_prior_scale`). None when fewer than
+    baked into a plain object's texture) only adds to the ratios, and one colour
+    predicting the data better (the other one-sided test, ``p_one_colour``)
+    ``rejects`` the texture's pattern: a region the photos cannot tell from one
+    colour keeps the scan's texture unless it is rejected (:func:`estimate`). k:
+    (3,) the prior's scale (:func:`_prior_scale`). None when fewer than
     :data:`_MIN_WEIGHING` texels have both."""
     has = np.isfinite(prior)
     p = np.where(has, prior, 0.0)
@@ -740,8 +770,11 @@ def prior_agreement(a, measured, prior, k, p_level: float) -> dict | None:
     to_prior = np.mean(la - np.log(k * p[both]), axis=1) ** 2
     to_one = np.mean(la - np.median(la, axis=0), axis=1) ** 2
     p_value = float(stats.wilcoxon(to_one - to_prior, alternative="greater").pvalue)
+    p_reject = float(stats.wilcoxon(to_one - to_prior, alternative="less").pvalue)
     return {"to_prior": float(np.median(to_prior)), "to_one": float(np.median(to_one)),
-            "p": p_value, "agrees": bool(p_value < p_level), "texels": int(both.sum())}
+            "p": p_value, "agrees": bool(p_value < p_level),
+            "p_one_colour": p_reject, "rejects": bool(p_reject < p_level),
+            "texels": int(both.sum())}
 
 
 PRIOR_SIGMA = 0.25  # the prior's relative error where the data cannot say
@@ -817,7 +850,7 @@ def _fill(albedo, known, shape, reference) -> np.ndarray:
 
 
 def _reason(constant: bool, channel_stats: list, settings: AlbedoSettings,
-            held_out: dict | None = None) -> str:
+            held_out: dict | None = None, kept: dict | None = None) -> str:
     worst = max(channel_stats, key=lambda s: s["spread"] - s["noise"])
     numbers = (f"its albedo varies by {100 * worst['spread']:.1f} % against the photos' "
                f"noise of {100 * worst['noise']:.1f} % (F test p = {worst['p']:.2g} "
@@ -827,6 +860,11 @@ def _reason(constant: bool, channel_stats: list, settings: AlbedoSettings,
         predicts = (f"; from the other photos a texture predicts each photo to "
                     f"{held_out['textured']:.3f}, one color to {held_out['constant']:.3f} "
                     f"(robust RMS log error)")
+    if kept is not None:
+        return (f"The scan's texture, scaled to the photos: they cannot tell its pattern "
+                f"from one color, nor one color from it (squared log error to the texture "
+                f"{kept['to_prior']:.3f}, to one color {kept['to_one']:.3f}, Wilcoxon p = "
+                f"{kept['p']:.2g} and {kept['p_one_colour']:.2g}); {numbers}{predicts}.")
     if not constant:
         return f"Textured: {numbers}{predicts}."
     if worst["p"] >= settings.p_level:

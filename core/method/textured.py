@@ -132,7 +132,8 @@ class RegionTexture:
 
     def summary(self) -> dict:
         m = self.map
-        return {"constant": m.constant, "reason": m.reason, "model": self.model,
+        return {"constant": m.constant, "pattern": m.stats.get("pattern"),
+                "reason": m.reason, "model": self.model,
                 "noise": self.noise, "misfit": self.misfit,
                 "reference": m.reference.tolist(),
                 "diffuse_level": self.delta.tolist(), "texels": m.stats["texels"],
