@@ -41,20 +41,25 @@ closed-form and vectorised with ``bincount``):
   the data's variance that the photos do show (what each photo's own estimate of
   a texel misses of the others', :func:`_view_variance`); both
   variances then weigh the mix (``prior_sigma`` None, the default; a number fixes
-  it). Where the prior's pattern predicts the data's better than one colour does
-  (:func:`prior_agreement`), the region is textured even when the photos' own
-  held-out test is not sure (a blunted metal's texels vary from view to view).
-  Where no lit photo sees a texel the prior alone gives it; where there is
+  it). Where no lit photo sees a texel the prior alone gives it; where there is
   neither, the nearest texel that has a value fills it (in the UV image).
-  **A region the photos cannot tell from one colour keeps the scan's texture**
-  (``stats["pattern"] == "scan texture"``, its texels INFERRED), unless one
-  colour predicts the data's albedo significantly better than the texture's
-  pattern does (``prior_agreement``'s ``rejects``: an ambient occlusion baked
-  into a plain object's texture). One colour is surely wrong where the texture
-  varies, and the user's texture is the better bet: on a blunted scan a
-  mirror's data are too far off to show a 17:1 texture that the scan's
-  texture holds to 1 % (degraded Spot's silver, aluminium and copper: 0.35 to
-  0.39 with one colour, 0.007 to 0.010 kept).
+  **Where the photos' own texture is not to be had, the scan's is kept**
+  (``stats["pattern"] == "scan texture"``, its texels INFERRED, the photos
+  setting its scale): where the photos cannot show a texture by themselves, and
+  where they show one that the scan's texture neither agrees with nor is
+  rejected by (one colour fitting the data's albedo significantly better than
+  the texture's pattern, ``prior_agreement``'s ``rejects``: an ambient
+  occlusion baked into a plain object's texture, the sky's reflection on a
+  near-black material; then one colour, or the photos' texture). One colour
+  is surely wrong where the texture varies, and with one light a blunted
+  scan's shading error looks like a texture to every test the photos can make
+  of their own: on degraded Spot a mirror's data are too far off to show a
+  17:1 texture that the scan's texture holds to 1 %. Agreement makes the
+  photos' texture the surface's (mixed with the scan's) only where it predicts
+  each photo from the other photos at least better than one colour does: a
+  texture the other photos refute is that view's error, however well the
+  scan's texture matches it (degraded Spot's gold: mixed 0.479 off, kept
+  0.011).
 
 **The shared shape, corrected per bin.** Given the observations' MERL cells, the
 shape is also corrected by a factor per coarse bin of directions
@@ -399,15 +404,22 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     k = None if prior is None else _prior_scale(a, measured, prior)
     agreement = None if prior is None else prior_agreement(a, measured, prior, k,
                                                            settings.p_level)
-    if agreement is not None and agreement["agrees"]:
+    if agreement is not None and agreement["agrees"] and (
+            held_out is None or held_out["observations"] < _MIN_HELD_OUT
+            or held_out["textured"] < held_out["constant"]):
         # the scan's texture, made from other photos, shows the data's pattern: the
-        # variation is the surface's, even where one view's shading error also varies
+        # variation is the surface's, even where one view's shading error also varies;
+        # not where the data's texture predicts each photo from the others worse than
+        # one colour does (a blunted scan's metal: that texture is its shading error)
         predicts = True
     constant = not (any(textured) and predicts)
-    # neither can the photos tell the texture's pattern from one colour nor one colour
-    # from the pattern: the scan's texture is kept (the user's texture is the better
-    # bet than one colour, which is surely wrong where the texture varies)
-    kept = bool(constant and agreement is not None and not agreement["rejects"])
+    # the scan's texture is kept unless one colour fits the data significantly better
+    # (then one colour, or the data's own texture) where the photos cannot show a
+    # texture, or where they show one the scan's texture neither agrees with nor
+    # rejects (a blunted mirror's texture, which is its shading error: the user's
+    # texture is the better bet, and one colour is surely wrong where it varies)
+    kept = bool(agreement is not None and not agreement["rejects"] and (
+        constant or not agreement["agrees"]))
     constant = constant and not kept
     # the region's colour: its one value (the estimate of least variance), or the
     # mean over the measured texels (each texel as much surface as another)
@@ -757,8 +769,8 @@ def prior_agreement(a, measured, prior, k, p_level: float) -> dict | None:
     data are; a prior whose pattern is not in the data (an ambient occlusion
     baked into a plain object's texture) only adds to the ratios, and one colour
     predicting the data better (the other one-sided test, ``p_one_colour``)
-    ``rejects`` the texture's pattern: a region the photos cannot tell from one
-    colour keeps the scan's texture unless it is rejected (:func:`estimate`). k:
+    ``rejects`` the texture's pattern; neither agreeing nor rejected, the scan's
+    texture is kept (:func:`estimate`). k:
     (3,) the prior's scale (:func:`_prior_scale`). None when fewer than
     :data:`_MIN_WEIGHING` texels have both."""
     has = np.isfinite(prior)
