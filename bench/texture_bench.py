@@ -40,9 +40,10 @@ KL) and the default basis without the material (``common.default_basis_without``
 - the model chosen, whether the region got a constant, the fits made, seconds;
 - ``with_scan_texture``: the same textured run given the scan's own texture as
   the prior, as the extension runs (:func:`scan_texture`, a photogrammetry bake
-  simulated with the ambient occlusion and the sky's reflection): its albedo and
-  sphere errors, the texture's own pattern error, the prior's weighing and
-  agreement (``core.method.albedo``).
+  simulated with the ambient occlusion and the sky's reflection): its albedo
+  errors (``albedo_error`` over the measured texels, ``albedo_error_seen`` over
+  every texel a lit photo observes, as issue 16 asks) and sphere error, the
+  texture's own pattern error, the prior's weighing and agreement (``core.method.albedo``).
 
 Writes ``bench/results/texture.json`` and ``texture.png`` (``--quick``:
 ``texture_quick.*``, 4 materials). About 34 minutes per seed on the 2-core machine.
@@ -57,7 +58,7 @@ import time
 import common
 import numpy as np
 
-from brdf_reconstruct.core.brdf import metrics
+from brdf_reconstruct.core.brdf import energy, metrics
 from brdf_reconstruct.core.method import albedo, pipeline, textured
 from testkit import synthetic
 
@@ -192,6 +193,7 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
         "albedo_error": pattern_error(t, tex), "albedo_error_floor": floor,
         "with_scan_texture": {
             "albedo_error": pattern_error(tp, tex),
+            "albedo_error_seen": seen_error(tp, tex),
             "scan_texture_error": _relative_pattern_error(prior.reshape(-1, 3)[seen_p],
                                                           tex[seen_p]),
             "sphere": metrics.sphere_error(with_prior.result.regions[0].table,
@@ -206,35 +208,6 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
                    "naive": metrics.sphere_error(naive.table, table)},
         "fits": len(result.rounds), "seconds_textured": seconds,
     }
-
-
-def directional_albedo(table: np.ndarray, n_theta: int = 120, n_phi: int = 120) -> np.ndarray:
-    """(90, 3) the table's directional albedo (the fraction of a uniform white sky it
-    reflects towards a viewer at theta_o = 0.5, 1.5, ... 89.5 degrees), by a
-    quadrature over half vectors whose theta_h is spaced as the table's bins
-    (``t^2 pi / 2``), so a mirror's narrow lobe is integrated, not missed."""
-    from brdf_reconstruct.core.brdf import merl
-
-    t = (np.arange(n_theta) + 0.5) / n_theta
-    theta_h, dtheta = t * t * np.pi / 2.0, np.pi * t / n_theta
-    phi = (np.arange(n_phi) + 0.5) / n_phi * 2.0 * np.pi
-    th, ph = np.meshgrid(theta_h, phi, indexing="ij")
-    h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)],
-                 axis=-1).reshape(-1, 3)
-    d_omega = (np.sin(th) * dtheta[:, None] * (2.0 * np.pi / n_phi)).reshape(-1)
-    theta_o = np.radians(np.arange(90) + 0.5)
-    v = np.stack([np.sin(theta_o), np.zeros(90), np.cos(theta_o)], axis=-1)  # (90, 3)
-    vh = v @ h.T  # (90, M)
-    light = 2.0 * vh[..., None] * h[None] - v[:, None]  # (90, M, 3), v mirrored about h
-    ok = (vh > 0.0) & (light[..., 2] > 0.0)
-    rows = np.nonzero(ok)
-    f = merl.evaluate(table, np.tile([0.0, 0.0, 1.0], (len(rows[0]), 1)), light[ok],
-                      v[rows[0]])
-    # d omega_l = 4 (v.h) d omega_h
-    weight = light[ok][:, 2] * 4.0 * vh[ok] * d_omega[rows[1]]
-    out = np.zeros((90, 3))
-    np.add.at(out, rows[0], f * weight[:, None])
-    return out
 
 
 def scan_texture(arrays: dict, colour, rest, texture, shape, ambient, *,
@@ -252,8 +225,8 @@ def scan_texture(arrays: dict, colour, rest, texture, shape, ambient, *,
     are not."""
     from brdf_reconstruct.core.method import albedo as albedo_
 
-    scaled, fixed = directional_albedo(colour), directional_albedo(rest) if np.nanmax(
-        rest) > 0.0 else np.zeros((90, 3))
+    scaled = energy.directional_albedo(colour)  # (90, 3) at 0.5, 1.5, ... 89.5 degrees
+    fixed = energy.directional_albedo(rest) if np.nanmax(rest) > 0.0 else np.zeros((90, 3))
     n_texels = shape[0] * shape[1]
     total, count = np.zeros((n_texels, 3)), np.zeros(n_texels)
     rng = np.random.default_rng(1000 + seed)
@@ -284,6 +257,14 @@ def pattern_error(t: textured.RegionTexture, tex: np.ndarray) -> float:
     texture's pattern (estimate and truth each over their mean on those texels)."""
     measured = t.map.measured
     return _relative_pattern_error(t.relative()[measured], tex[measured])
+
+
+def seen_error(t: textured.RegionTexture, tex: np.ndarray) -> float:
+    """As :func:`pattern_error` over every texel a lit photo observes
+    (``AlbedoMap.observations`` > 0), whatever its coverage: measured, or the scan's
+    texture kept where the photos could not tell it from one colour."""
+    seen = t.map.observations > 0
+    return _relative_pattern_error(t.relative()[seen], tex[seen])
 
 
 def _relative_pattern_error(estimate: np.ndarray, truth: np.ndarray) -> float:
@@ -344,6 +325,8 @@ def _summarise(rows: list) -> dict:
         out[scan]["with_scan_texture"] = {
             "albedo_error_median": float(np.median([np.median(
                 [x["with_scan_texture"]["albedo_error"] for x in v]) for v in by.values()])),
+            "albedo_error_seen_median": float(np.median([np.median(
+                [x["with_scan_texture"]["albedo_error_seen"] for x in v]) for v in by.values()])),
             "albedo_error_at_most_10_percent": int(sum(np.median(
                 [x["with_scan_texture"]["albedo_error"] for x in v]) <= 0.10
                 for v in by.values())),

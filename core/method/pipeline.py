@@ -26,6 +26,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ..brdf import energy
 from ..brdf.basis import Basis
 from ..progress import Cancelled as Cancelled  # re-exported: what run() raises
 from ..progress import check
@@ -143,10 +144,7 @@ class RefineInputs:
     Basis. observed: the region's observed samples after the up-front removals
     (``Samples``, N). trusted: the reliable region's samples (M). options: keyword
     arguments of the refit (``peak_bound`` for the energy refit). photo_consistent:
-    the run's setting (``PipelineSettings.photo_consistent``). normalised: the
-    photos were normalised with an earlier table (a textured region's,
-    ``core.method.textured``), so they are not independent of the refit the judge
-    weighs against the trial (:func:`refine_chosen`)."""
+    the run's setting (``PipelineSettings.photo_consistent``)."""
 
     method: str
     basis: Basis
@@ -154,7 +152,6 @@ class RefineInputs:
     trusted: Samples
     options: dict
     photo_consistent: float = 0.0
-    normalised: bool = False
 
 
 @dataclasses.dataclass(eq=False)
@@ -309,10 +306,8 @@ def run_region(
     rng: np.random.Generator,
     progress=None,
     cancelled=None,
-    normalised: bool = False,
 ) -> RegionResult:
-    """Reliable region, trials and KL selection for one region's samples
-    (``normalised``: as :func:`run`'s)."""
+    """Reliable region, trials and KL selection for one region's samples."""
     sel = np.flatnonzero(samples.region == region)
     result = RegionResult(region=int(region), status="skipped",
                           counts={"observed": int(len(sel))})
@@ -386,7 +381,7 @@ def run_region(
         # Eq. (2)'s bound on the peak where Eq. (2) holds (not with the peak clipped)
         options = {"peak_bound": rel.use_brightest} if method == "energy" else {}
         result.refine_inputs = RefineInputs(method, basis, observed, cand, options,
-                                            settings.photo_consistent, normalised)
+                                            settings.photo_consistent)
         check(cancelled)
         if progress:
             progress(1.0, f"region {region}: refining the chosen table "
@@ -411,14 +406,15 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     (``refine.held_out_rmse``) and hardly moves on the rendered sphere
     (``refine.photo_dependence``), both to the same level in the median over
     photos, or predicts the photo left out to ``refine.TRIAL_SHARE`` of the chosen
-    trial's own error on the photos or less (median over photos; not where the
-    photos were ``normalised`` with an earlier table), it is the table: the scan's
-    normals are then good
-    enough for the photos to be read pixel by pixel, which the energy refit does
-    not do. ``refinement["every_pixel"]`` records its ``relative_rmse``, ``per_photo``
-    and ``held_out`` errors, its ``dependence`` on each photo, the trial's error on
-    each photo (``trial_per_photo``), whether it was ``kept`` and ``by`` which
-    test ("its own errors" or "against the trial"); ``refinement["table"]`` says
+    trial's own error on the photos or less (median over photos) while
+    reflecting no more light than it receives (``refine.MAX_ALBEDO``), it is the
+    table: the scan's normals are then good enough for the photos to be read pixel
+    by pixel, which the energy refit does not do. ``refinement["every_pixel"]``
+    records its ``relative_rmse``, ``per_photo`` and ``held_out`` errors, its
+    ``dependence`` on each photo, the trial's error on each photo
+    (``trial_per_photo``), its ``largest_albedo`` where asked, whether it was
+    ``kept`` and ``by`` which test ("its own errors" or "against the trial");
+    ``refinement["table"]`` says
     which became the table: "trial", "energy" or "every_pixel". ``cancelled`` is
     polled between the refits (:class:`Cancelled`; the result is then left as it
     was)."""
@@ -440,7 +436,7 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     if method == "energy" and judge > 0.0:  # the photos judge first: read pixel by pixel?
         every, verdict = _every_pixel_verdict(
             basis, start, observed, trusted, judge, cancelled,
-            trial_share=0.0 if inp.normalised else refine.TRIAL_SHARE)
+            trial_share=refine.TRIAL_SHARE)
         check(cancelled)
         recorded["every_pixel"] = verdict
         if verdict["kept"]:
@@ -494,15 +490,17 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
       own errors"), or
     - the refits predict the photo left out to ``trial_share`` of the chosen
       trial's own relative RMSE on the photos or less ("against the trial"; 0:
-      not asked).
+      not asked), and reflect no more light than it receives: its largest
+      directional albedo (``core.brdf.energy.largest_albedo``) at most
+      ``refine.MAX_ALBEDO``.
     Returns the refit and a JSON-ready record (``relative_rmse``, ``per_photo``,
     ``held_out``, ``dependence``, ``trial_per_photo``, ``kept``, ``by``,
-    ``threshold``, ``trial_share``; NaN, a black photo's or a single photo's, as
-    None, and never kept)."""
+    ``largest_albedo`` (None where not asked), ``threshold``, ``trial_share``;
+    NaN, a black photo's or a single photo's, as None, and never kept)."""
     every = refine.photo_consistent(basis, start, observed, trusted)
     per_photo = refine.relative_rmse_per_photo(every, observed)
     kept = bool(np.all(per_photo <= judge))
-    held_out = dependence = trial = None
+    held_out = dependence = trial = albedo = None
     by = None
     if kept:
         fits = refine.held_out_refits(basis, start, observed, trusted, cancelled=cancelled)
@@ -515,7 +513,9 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
             by = "its own errors"
         elif (predicted and trial_share > 0.0 and np.all(np.isfinite(trial))
               and np.median(held_out) <= trial_share * np.median(trial)):
-            by = "against the trial"
+            albedo = energy.largest_albedo(every.table)  # better than the trial, but
+            if albedo <= refine.MAX_ALBEDO:               # still a surface?
+                by = "against the trial"
         kept = by is not None
     return every, {
         "relative_rmse": _finite_or_none(refine.relative_rmse(every, observed)),
@@ -523,6 +523,7 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
         "held_out": None if held_out is None else [_finite_or_none(r) for r in held_out],
         "dependence": None if dependence is None else [_finite_or_none(r) for r in dependence],
         "trial_per_photo": None if trial is None else [_finite_or_none(r) for r in trial],
+        "largest_albedo": None if albedo is None else _finite_or_none(albedo),
         "threshold": judge, "trial_share": trial_share}
 
 
@@ -537,17 +538,12 @@ def run(
     regions: Sequence[int] | None = None,
     progress: Callable[[float, str], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
-    normalised: bool = False,
 ) -> PipelineResult:
     """Reconstruct one BRDF per region from lit photos and their G-buffers.
 
     ``regions``: the region ids to reconstruct (default: every id >= 0 seen in
     any G-buffer). ``progress(fraction, message)`` is called between steps with
-    fraction in [0, 1]; ``cancelled()`` is polled between steps. ``normalised``:
-    the photos were divided by a texture estimated with an earlier table
-    (``core.method.textured``); the judge then keeps the every-pixel refit only by
-    its own errors, not by comparing them with the trial's
-    (:func:`refine_chosen`). Raises
+    fraction in [0, 1]; ``cancelled()`` is polled between steps. Raises
     ValueError with one sentence when no photo is given or every region is
     skipped, and :class:`Cancelled` when cancelled.
     """
@@ -578,8 +574,7 @@ def run(
     for i, (region, child) in enumerate(zip(regions, rng.spawn(len(regions)), strict=True)):
         lo = 0.1 + 0.9 * i / len(regions)
         results.append(run_region(basis, samples, inputs, int(region), settings, child,
-                                  stage_progress(lo, lo + 0.9 / len(regions)), cancelled,
-                                  normalised))
+                                  stage_progress(lo, lo + 0.9 / len(regions)), cancelled))
     timings["reliable_trials_selection"] = time.perf_counter() - t0
     for r in results:
         for stage, seconds in r.timings.items():
