@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core.brdf import merl, metrics
+from brdf_reconstruct.core.brdf import energy, merl, metrics
 from brdf_reconstruct.core.method import pipeline, refine, reliable
 from brdf_reconstruct.core.method.reconstruct import reconstruct
 from testkit import synthetic
@@ -260,30 +260,37 @@ def test_the_photos_are_read_pixel_by_pixel_where_the_scan_allows(default_basis,
 
 
 def test_a_refit_that_hangs_on_each_photo_but_halves_the_trials_error_is_kept(
-        default_basis, heldout_tables):
+        default_basis, heldout_tables, monkeypatch):
     """The polished aluminium under two lights, exact normals: refitted from one
-    photo alone, the every-pixel refit moves on the sphere by more than the
-    judge's 0.2 (measured 0.20 and 0.21: each photo alone sees part of the lobe),
+    photo alone, the every-pixel refit moves on the sphere by more than a judge of
+    0.15 allows (measured 0.16 to 0.21: each photo alone sees part of the lobe),
     but predicts the photo left out far better than the chosen trial fits it
-    (0.025 against 0.06). The photos say it is the better table, so it is kept
-    ("against the trial"), and it is nearer the truth than the energy refit
-    (measured 0.042 against 0.190; asked: 2x). Where the photos were normalised
-    with an earlier table (a textured region's) only its own errors count, and
-    the energy refit is the table."""
+    (0.02 to 0.025 against 0.17 to 0.19). The photos say it is the better table,
+    so it is kept ("against the trial"), and it is nearer the truth than the
+    energy refit (measured 0.042 against 0.190; asked: 2x). Its directional
+    albedo is within refine.MAX_ALBEDO (measured 0.91 at normal view, as the
+    truth's, and 1.29 at 80 degrees, where no photo looks); asked to reflect less
+    than that, the judge turns it down and the energy refit is the table."""
     truth = heldout_tables["heldout_aluminium_polished"]
     region = pipeline.run(default_basis, _inputs(truth, lights=(0, 2)), SETTINGS).regions[0]
+    judge = 0.15  # below the dependence on each photo, above the refit's own misses
+    pipeline.refine_chosen(region, photo_consistent=judge)
     judged = region.refinement["every_pixel"]
     assert judged["kept"] and judged["by"] == "against the trial"
     assert region.refinement["table"] == "every_pixel"
-    assert np.median(judged["dependence"]) > SETTINGS.photo_consistent
+    assert np.median(judged["dependence"]) > judge
     assert (np.median(judged["held_out"])
             <= refine.TRIAL_SHARE * np.median(judged["trial_per_photo"]))
     assert judged["trial_share"] == refine.TRIAL_SHARE
+    assert judged["largest_albedo"] <= refine.MAX_ALBEDO
+    assert judged["largest_albedo"] == pytest.approx(
+        energy.largest_albedo(region.table), rel=1e-9)
     kept = metrics.sphere_error(region.table, truth)
-    region.refine_inputs = dataclasses.replace(region.refine_inputs, normalised=True)
-    pipeline.refine_chosen(region)
+    monkeypatch.setattr(refine, "MAX_ALBEDO", 0.5 * judged["largest_albedo"])
+    pipeline.refine_chosen(region, photo_consistent=judge)
     judged = region.refinement["every_pixel"]
-    assert not judged["kept"] and judged["by"] is None and judged["trial_share"] == 0.0
+    assert not judged["kept"] and judged["by"] is None
+    assert judged["largest_albedo"] > refine.MAX_ALBEDO
     assert region.refinement["table"] != "every_pixel"
     assert kept < metrics.sphere_error(region.table, truth) / 2
 
