@@ -144,7 +144,11 @@ class RefineInputs:
     Basis. observed: the region's observed samples after the up-front removals
     (``Samples``, N). trusted: the reliable region's samples (M). options: keyword
     arguments of the refit (``peak_bound`` for the energy refit). photo_consistent:
-    the run's setting (``PipelineSettings.photo_consistent``)."""
+    the run's setting (``PipelineSettings.photo_consistent``). normalised: the
+    photos were normalised with an earlier table (a textured region's,
+    ``core.method.textured``), so they are not independent of the refit the judge
+    weighs against the trial: a refit kept that way must also reflect no more
+    than ``refine.MAX_ALBEDO`` of the light it receives (:func:`refine_chosen`)."""
 
     method: str
     basis: Basis
@@ -152,6 +156,7 @@ class RefineInputs:
     trusted: Samples
     options: dict
     photo_consistent: float = 0.0
+    normalised: bool = False
 
 
 @dataclasses.dataclass(eq=False)
@@ -306,8 +311,10 @@ def run_region(
     rng: np.random.Generator,
     progress=None,
     cancelled=None,
+    normalised: bool = False,
 ) -> RegionResult:
-    """Reliable region, trials and KL selection for one region's samples."""
+    """Reliable region, trials and KL selection for one region's samples
+    (``normalised``: as :func:`run`'s)."""
     sel = np.flatnonzero(samples.region == region)
     result = RegionResult(region=int(region), status="skipped",
                           counts={"observed": int(len(sel))})
@@ -381,7 +388,7 @@ def run_region(
         # Eq. (2)'s bound on the peak where Eq. (2) holds (not with the peak clipped)
         options = {"peak_bound": rel.use_brightest} if method == "energy" else {}
         result.refine_inputs = RefineInputs(method, basis, observed, cand, options,
-                                            settings.photo_consistent)
+                                            settings.photo_consistent, normalised)
         check(cancelled)
         if progress:
             progress(1.0, f"region {region}: refining the chosen table "
@@ -406,15 +413,15 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     (``refine.held_out_rmse``) and hardly moves on the rendered sphere
     (``refine.photo_dependence``), both to the same level in the median over
     photos, or predicts the photo left out to ``refine.TRIAL_SHARE`` of the chosen
-    trial's own error on the photos or less (median over photos) while
-    reflecting no more light than it receives (``refine.MAX_ALBEDO``), it is the
-    table: the scan's normals are then good enough for the photos to be read pixel
-    by pixel, which the energy refit does not do. ``refinement["every_pixel"]``
-    records its ``relative_rmse``, ``per_photo`` and ``held_out`` errors, its
-    ``dependence`` on each photo, the trial's error on each photo
-    (``trial_per_photo``), its ``largest_albedo`` where asked, whether it was
-    ``kept`` and ``by`` which test ("its own errors" or "against the trial");
-    ``refinement["table"]`` says
+    trial's own error on the photos or less (median over photos; where the
+    photos were ``normalised`` with an earlier table, only if its directional
+    albedo stays within ``refine.MAX_ALBEDO``), it is the table: the scan's
+    normals are then good enough for the photos to be read pixel by pixel, which
+    the energy refit does not do. ``refinement["every_pixel"]`` records its
+    ``relative_rmse``, ``per_photo`` and ``held_out`` errors, its ``dependence``
+    on each photo, the trial's error on each photo (``trial_per_photo``), its
+    ``largest_albedo`` where asked, whether it was ``kept`` and ``by`` which
+    test ("its own errors" or "against the trial"); ``refinement["table"]`` says
     which became the table: "trial", "energy" or "every_pixel". ``cancelled`` is
     polled between the refits (:class:`Cancelled`; the result is then left as it
     was)."""
@@ -436,7 +443,8 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     if method == "energy" and judge > 0.0:  # the photos judge first: read pixel by pixel?
         every, verdict = _every_pixel_verdict(
             basis, start, observed, trusted, judge, cancelled,
-            trial_share=refine.TRIAL_SHARE)
+            trial_share=refine.TRIAL_SHARE,
+            max_albedo=refine.MAX_ALBEDO if inp.normalised else None)
         check(cancelled)
         recorded["every_pixel"] = verdict
         if verdict["kept"]:
@@ -480,7 +488,7 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
 
 
 def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelled=None,
-                         trial_share: float = 0.0):
+                         trial_share: float = 0.0, max_albedo: float | None = None):
     """The chosen trial refitted to every observed pixel (``refine.photo_consistent``)
     and whether the photos keep it. It must reproduce each photo to a relative RMSE
     of ``judge`` or less; then (asked only then) it is refitted without each photo
@@ -490,9 +498,9 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
       own errors"), or
     - the refits predict the photo left out to ``trial_share`` of the chosen
       trial's own relative RMSE on the photos or less ("against the trial"; 0:
-      not asked), and reflect no more light than it receives: its largest
-      directional albedo (``core.brdf.energy.largest_albedo``) at most
-      ``refine.MAX_ALBEDO``.
+      not asked) and, if ``max_albedo`` is given, reflect no more than that of
+      the light it receives (its largest directional albedo,
+      ``core.brdf.energy.largest_albedo``).
     Returns the refit and a JSON-ready record (``relative_rmse``, ``per_photo``,
     ``held_out``, ``dependence``, ``trial_per_photo``, ``kept``, ``by``,
     ``largest_albedo`` (None where not asked), ``threshold``, ``trial_share``;
@@ -513,8 +521,9 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
             by = "its own errors"
         elif (predicted and trial_share > 0.0 and np.all(np.isfinite(trial))
               and np.median(held_out) <= trial_share * np.median(trial)):
-            albedo = energy.largest_albedo(every.table)  # better than the trial, but
-            if albedo <= refine.MAX_ALBEDO:               # still a surface?
+            if max_albedo is not None:  # better than the trial, but still a surface?
+                albedo = energy.largest_albedo(every.table)
+            if max_albedo is None or albedo <= max_albedo:
                 by = "against the trial"
         kept = by is not None
     return every, {
@@ -538,12 +547,17 @@ def run(
     regions: Sequence[int] | None = None,
     progress: Callable[[float, str], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
+    normalised: bool = False,
 ) -> PipelineResult:
     """Reconstruct one BRDF per region from lit photos and their G-buffers.
 
     ``regions``: the region ids to reconstruct (default: every id >= 0 seen in
     any G-buffer). ``progress(fraction, message)`` is called between steps with
-    fraction in [0, 1]; ``cancelled()`` is polled between steps. Raises
+    fraction in [0, 1]; ``cancelled()`` is polled between steps. ``normalised``:
+    the photos were divided by a texture estimated with an earlier table
+    (``core.method.textured``); the judge then keeps an every-pixel refit that
+    beats the trial only if it reflects no more than ``refine.MAX_ALBEDO`` of the
+    light it receives (:func:`refine_chosen`). Raises
     ValueError with one sentence when no photo is given or every region is
     skipped, and :class:`Cancelled` when cancelled.
     """
@@ -574,7 +588,8 @@ def run(
     for i, (region, child) in enumerate(zip(regions, rng.spawn(len(regions)), strict=True)):
         lo = 0.1 + 0.9 * i / len(regions)
         results.append(run_region(basis, samples, inputs, int(region), settings, child,
-                                  stage_progress(lo, lo + 0.9 / len(regions)), cancelled))
+                                  stage_progress(lo, lo + 0.9 / len(regions)), cancelled,
+                                  normalised))
     timings["reliable_trials_selection"] = time.perf_counter() - t0
     for r in results:
         for stage, seconds in r.timings.items():

@@ -456,7 +456,8 @@ def run(
             if progress:
                 progress(lo + (hi - lo) * f, f"texture round {k + 1}: {msg}")
 
-        result = pipeline.run(basis, current, settings, regions, stage, cancelled)
+        result = pipeline.run(basis, current, settings, regions, stage, cancelled,
+                              normalised=True)
         t0 = time.perf_counter()
         changes, new = {}, {}
         for region in result.regions:

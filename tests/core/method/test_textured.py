@@ -112,7 +112,9 @@ def test_the_judged_refit_keeps_the_shared_shape_near_the_truth(runs):
     assert shared <= metrics.sphere_error(runs["trials"]["untextured"], truth) + 0.05
     assert np.isfinite(region.table).all()
     # the photos were divided by a texture the previous table made; the judge weighs
-    # the refit against the trial as on untextured photos
+    # the refit against the trial as on untextured photos, and would ask it to
+    # conserve energy too
+    assert region.refine_inputs.normalised
     assert region.refinement["every_pixel"]["trial_share"] == refine.TRIAL_SHARE
 
 
