@@ -168,7 +168,8 @@ def select_by_kl(
         The photos (V >= 1) with their G-buffers, light and irradiance.
     n_bins, floor, mode
         Passed to :func:`kl.kl_divergence`; the log-spaced bins span the
-        positive range of each view's photo and are shared by all candidates.
+        positive range of each view's photo, down to ``DYNAMIC_RANGE`` of its
+        brightest value (:func:`photo_range`), and are shared by all candidates.
     aggregate : {"mean", "sum"}
         How the per-view KLs make one score per candidate.
     keep_renders : bool
@@ -343,12 +344,27 @@ class _ViewLookup:
         return image
 
 
+#: The darkest photo value the bins resolve, as a fraction of the brightest: 20
+#: stops, about what a bracketed HDR merge records (a single 16-bit linear frame
+#: records 16). Darker values, and zeros, share the first bin. Without the bound a
+#: synthetic photo whose shadows reach 1e-301 spread 64 bins over 301 decades, and a
+#: 2e-7 relative change of the photo moved a trial's KL from 3.93 to 3.86 and
+#: flipped the winner (docs/results.md, "Why one trial flipped").
+DYNAMIC_RANGE = 1e-6
+
+
 def photo_range(pixels: np.ndarray):
-    """(lo, hi) of the positive photo values (all channels), or None if none is."""
+    """(lo, hi) the KL's log bins span for one photo, or None if no value is positive.
+
+    pixels: (N, 3) or (N,) linear photo values (all channels count). hi is the
+    brightest positive value; lo the darkest positive one, but not below
+    ``DYNAMIC_RANGE * hi``. A single value is widened by e^(1/2) each way.
+    """
     positive = pixels[pixels > 0.0]
     if positive.size == 0:
         return None
-    lo, hi = float(positive.min()), float(positive.max())
+    hi = float(positive.max())
+    lo = max(float(positive.min()), DYNAMIC_RANGE * hi)
     return (lo, hi) if hi > lo else (lo * np.exp(-0.5), hi * np.exp(0.5))
 
 

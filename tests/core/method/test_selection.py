@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 
 from brdf_reconstruct.core.brdf import database, merl, render
+from brdf_reconstruct.core.method import selection
 from brdf_reconstruct.core.method.selection import (
     SelectionResult,
     View,
+    photo_range,
     select_by_kl,
     shade_gbuffer,
 )
@@ -215,6 +217,45 @@ def test_nan_photo_pixels_are_excluded_and_counted(tables, gbuffer):
     assert result.winner == 1
     assert result.kl[1] == pytest.approx(0.0, abs=1e-12)
     assert np.all(np.isfinite(result.kl))
+
+
+def test_photo_range_stops_at_the_cameras_dynamic_range():
+    pixels = np.array([[1e-301, 0.0, 2.0], [-1.0, 0.5, 4.0]])
+    assert photo_range(pixels) == (selection.DYNAMIC_RANGE * 4.0, 4.0)
+    assert photo_range(np.array([0.25, 0.5])) == (0.25, 0.5)  # within the range: as it is
+    lo, hi = photo_range(np.array([3.0, 3.0]))
+    assert lo == pytest.approx(3.0 * np.exp(-0.5)) and hi == pytest.approx(3.0 * np.exp(0.5))
+    assert photo_range(np.array([0.0, -2.0])) is None
+
+
+def test_values_darker_than_the_cameras_range_do_not_move_the_scores(tables, gbuffer,
+                                                                      monkeypatch):
+    # A synthetic photo's shadows can hold values down to 1e-301. Whether they are
+    # that, a 1e-7 relative perturbation of that, or exactly zero, no camera would
+    # tell them apart: the scores must be the same to the last bit.
+    truth = tables["truth_filled"]
+    views = make_views(truth, gbuffer)
+    rows, cols = np.nonzero(views[0].mask)
+    dark = (rows[::3], cols[::3])  # a third of the object
+    brightest = views[0].photo[views[0].mask].max()
+    rng = np.random.default_rng(0)
+    tiny = brightest * 10.0 ** rng.uniform(-301.0, -7.0, (dark[0].size, 1)) * np.ones(3)
+    candidates = [truth, 0.5 * truth, tables["other"]]
+
+    def scores(values):
+        photo = views[0].photo.copy()
+        photo[dark] = values
+        return select_by_kl(candidates, [dataclasses.replace(views[0], photo=photo),
+                                         views[1]]).kl
+
+    as_given = scores(tiny)
+    np.testing.assert_array_equal(as_given, scores(tiny * (1.0 + 1e-7 * rng.standard_normal(
+        tiny.shape))))
+    np.testing.assert_array_equal(as_given, scores(0.0))
+    assert np.all(np.isfinite(as_given))
+    # Bins spread down to the darkest value (the old policy) make those values count.
+    monkeypatch.setattr(selection, "DYNAMIC_RANGE", 0.0)
+    assert not np.array_equal(scores(tiny), scores(0.0))
 
 
 def test_mapping_views_and_kept_renders(gbuffer):
