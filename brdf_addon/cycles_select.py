@@ -98,7 +98,8 @@ def score_candidate(scene, inputs, region: int, table, render_samples: int = 16,
                                      v.light, v.irradiance, (w, h), render_samples, bounces,
                                      device)
             ok = v.mask & np.all(np.isfinite(v.photo), axis=-1)
-            # the fast path's bins: log-spaced over the photo's positive range
+            # the fast path's bins: log-spaced over the photo's positive range, down to
+            # selection.DYNAMIC_RANGE of its brightest value
             kl[j] = kl_module.kl_divergence(v.photo[ok], image[ok], n_bins=n_bins,
                                             range=selection.photo_range(v.photo[ok]))
         return kl
