@@ -190,8 +190,9 @@ class RegionResult:
     trial's ratio per photo, ``energy_per_photo`` (``refine.energy_ratios``). The
     energy refit also records ``normal_noise_deg`` (``refine.normal_noise`` over
     the region), and ``skipped``, one sentence, where the chosen trial is kept:
-    that noise is above ``refine.MAX_NORMAL_NOISE_DEG``, the trial's energy ratio
-    is within ``refine.ENERGY_TOLERANCE`` of 1 (nothing to give back), or the
+    that noise is above ``refine.MAX_NORMAL_NOISE_DEG``, the photos were
+    ``normalised`` by a texture and the trial's energy ratio is within
+    ``refine.ENERGY_TOLERANCE`` of 1 (the albedo was fitted to the trial), or the
     photos' ratios scatter by more than their mean misses 1
     (``refine.energy_agreement``) and the refit's ratios
     (``energy_per_photo_after``) still miss them by more than
@@ -459,9 +460,11 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
             result.timings["refinement"] = time.perf_counter() - t0
             return
     skipped = None
-    if method == "energy" and abs(energy - 1.0) <= refine.ENERGY_TOLERANCE:
-        skipped = (f"the chosen trial's radiance is already within "
-                   f"{100 * refine.ENERGY_TOLERANCE:g} % of the photos' "
+    if (method == "energy" and inp.normalised
+            and abs(energy - 1.0) <= refine.ENERGY_TOLERANCE):
+        skipped = (f"the photos were divided by an albedo fitted to the chosen trial, "
+                   f"whose radiance is already within "
+                   f"{100 * refine.ENERGY_TOLERANCE:g} % of theirs "
                    f"({energy:.3f} of it), so it was kept as it is")
     if not skipped:
         fit = refine.energy_consistent if method == "energy" else refine.photo_consistent

@@ -5,14 +5,15 @@ the chosen trial's coefficients refitted so that the radiance the table predicts
 on the scan, summed over each photo, is the photo's sum, with no pixel brighter
 than the brightest photographed and each photo's peak bounded by Eq. (2). A
 highlight's sum hardly depends on where wrong normals put its pixels, so this
-keeps the highlights a blunted scan loses (issue 15). It is skipped where the
-trial already holds the photos' energy (:data:`ENERGY_TOLERANCE`), where the
-photos disagree among themselves on the trial's energy by more than they
-jointly miss it (:func:`energy_agreement`) and the refit does not reconcile
-them (:func:`energy_misfit` above :data:`ENERGY_RECONCILED`: a scan whose
-shadows or shape put a different share of each photo's light where the table
-is read, so no table meets every sum), and where the scan's normals are noisy from pixel to pixel
-(:func:`normal_noise`, :data:`MAX_NORMAL_NOISE_DEG`). Measured in
+keeps the highlights a blunted scan loses (issue 15). It is skipped where the photos
+were divided by a texture and the trial already holds their energy
+(:data:`ENERGY_TOLERANCE`), where the photos disagree among themselves on the
+trial's energy by more than they jointly miss it (:func:`energy_agreement`) and the
+refit does not reconcile them (:func:`energy_misfit` above
+:data:`ENERGY_RECONCILED`: a scan whose shadows or shape put a different share of
+each photo's light where the table is read, so no table meets every sum), and where
+the scan's normals are noisy from pixel to pixel (:func:`normal_noise`,
+:data:`MAX_NORMAL_NOISE_DEG`). Measured in
 ``bench/photo_bench.py`` (docs/results.md).
 
 **Every pixel** (:func:`photo_consistent`, setting ``refine_to_photos``, off; and
@@ -130,10 +131,16 @@ MAX_ALBEDO = 1.05
 # held-out photos' errors, settles within 5 (the exact bunny's gold, Lambert and
 # two-layer gold: equal to 0.002 at 3, 5, 10 and 20 steps) at a quarter of 20's time
 HELD_OUT_ITERATIONS = 5
-# The energy refit changes nothing where the chosen trial's radiance on the scan is
-# already within this share of the photos' (2.5 ENERGY_SIGMA): a refit there only
-# trades the trial for a fit of every reliable sample, which measured worse on the
-# measured materials (docs/results.md)
+# Where the photos were divided by a texture (``pipeline.RefineInputs.normalised``),
+# its albedo per texel was fitted to the chosen trial's own shape, so the photos hold
+# the trial's energy by construction; where the trial's radiance is already within
+# this share of theirs (2.5 ENERGY_SIGMA) the energy refit is skipped there: it would
+# only trade the shared shape for a fit of the reliable samples divided by that
+# albedo. Measured on test_textured's numpy scene (exact normals, 9 analytic
+# materials, energy refit alone): without the skip the shared shape came out worse
+# for 4 (glossy plastic 0.096 -> 0.125, near-black 0.212 -> 0.229) and better for 3.
+# Untextured photos are always refitted: a skip there cost the blunted bunny's
+# Balanced median 0.186 -> 0.270 (two-layer gold; docs/results.md)
 ENERGY_TOLERANCE = 0.05
 # Where the photos disagree on the chosen trial's energy by more than they miss it
 # together (energy_agreement), the refit is kept only if it reconciles them: every
