@@ -43,7 +43,6 @@ def test_lambert_table_gives_exact_kd(lambert_table):
     np.testing.assert_allclose(fit.params.diffuse, [0.6, 0.35, 0.1], atol=1e-3)
     assert fit.errors["log_rmse"] < 1e-4
     assert max(fit.errors["sphere_rel_rmse_lights"]) < 1e-3
-    assert fit.info["time_fit_s"] < 15.0  # about 1-2 s on 2 shared cores
 
 
 def test_own_model_table_is_recovered():
@@ -99,7 +98,6 @@ def test_heldout_fit_error_bounded(heldout_tables, name):
     assert np.all(np.isfinite(e["sphere_rel_rmse_lights"])) and np.isfinite(e["log_rmse"])
     assert np.mean(e["sphere_rel_rmse_lights"]) < HELDOUT_BOUNDS[name]
     assert e["log_rmse"] < 0.1  # measured max 0.066 (glossy plastic)
-    assert fit.info["time_fit_s"] < 15.0
 
 
 def test_unmeasured_nan_inf_negative_cells_are_ignored(plastic_table):
