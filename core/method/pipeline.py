@@ -190,7 +190,9 @@ class RegionResult:
     trial's ratio per photo, ``energy_per_photo`` (``refine.energy_ratios``). The
     energy refit also records ``normal_noise_deg`` (``refine.normal_noise`` over
     the region), and ``skipped``, one sentence, where the chosen trial is kept:
-    that noise is above ``refine.MAX_NORMAL_NOISE_DEG``, or the
+    that noise is above ``refine.MAX_NORMAL_NOISE_DEG``, the photos were
+    ``normalised`` by a texture and the trial's energy ratio is within
+    ``refine.ENERGY_TOLERANCE`` of 1 (the albedo was fitted to the trial), or the
     photos' ratios scatter by more than their mean misses 1
     (``refine.energy_agreement``) and the refit's ratios
     (``energy_per_photo_after``) still miss them by more than
@@ -458,16 +460,23 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
             result.timings["refinement"] = time.perf_counter() - t0
             return
     skipped = None
-    fit = refine.energy_consistent if method == "energy" else refine.photo_consistent
-    refined = fit(basis, start, observed, trusted, **inp.options)
-    after = refine.energy_ratios(refined, observed)
-    recorded["energy_per_photo_after"] = [float(r) for r in after]
-    if method == "energy" and refine.photos_disagree_unreconciled(ratios, after):
-        skipped = (
-            "the photos disagree on the chosen trial's energy (each photo's ratio "
-            f"{', '.join(f'{r:.2f}' for r in ratios)}) by more than they miss it "
-            "together, and the refit does not reconcile them (ratios after "
-            f"{', '.join(f'{r:.2f}' for r in after)}), so the trial was kept as it is")
+    if (method == "energy" and inp.normalised
+            and abs(energy - 1.0) <= refine.ENERGY_TOLERANCE):
+        skipped = (f"the photos were divided by an albedo fitted to the chosen trial, "
+                   f"whose radiance is already within "
+                   f"{100 * refine.ENERGY_TOLERANCE:g} % of theirs "
+                   f"({energy:.3f} of it), so it was kept as it is")
+    if not skipped:
+        fit = refine.energy_consistent if method == "energy" else refine.photo_consistent
+        refined = fit(basis, start, observed, trusted, **inp.options)
+        after = refine.energy_ratios(refined, observed)
+        recorded["energy_per_photo_after"] = [float(r) for r in after]
+        if method == "energy" and refine.photos_disagree_unreconciled(ratios, after):
+            skipped = (
+                "the photos disagree on the chosen trial's energy (each photo's ratio "
+                f"{', '.join(f'{r:.2f}' for r in ratios)}) by more than they miss it "
+                "together, and the refit does not reconcile them (ratios after "
+                f"{', '.join(f'{r:.2f}' for r in after)}), so the trial was kept as it is")
     if skipped:
         result.table = start.table  # nothing the photos agree on to give back
         result.refinement = {**recorded, "skipped": skipped, "table": "trial"}
