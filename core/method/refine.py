@@ -136,17 +136,15 @@ HELD_OUT_ITERATIONS = 5
 # the trial's energy by construction; where the trial's radiance is already within
 # this share of theirs (2.5 ENERGY_SIGMA) the energy refit is skipped there: it would
 # only trade the shared shape for a fit of the reliable samples divided by that
-# albedo. Not settled: on test_textured's numpy scene (exact normals, the 12
-# analytic materials, the energy refit alone) dropping the skip there too moved the
-# shared shape's median 0.106 -> 0.092 (5 better, 3 worse: glossy plastic 0.096 ->
-# 0.125), and with the defaults nothing; on the texture bench's blunted numpy scene
-# (seed 0, 19 materials, the defaults) the shared shape's median stayed 0.441 (1
-# better, 1 worse) and 0.460 with the scan's texture (3 better, 2 worse); on
-# degraded Spot it helped (5 better, at most 1 worse of 19; within 1.3x of the
-# untextured capture 18 of 19 against 16). Textured photos keep the rule until the
-# texture benches are rerun without it. Untextured photos are always refitted: a
-# skip there cost the blunted bunny's Balanced median 0.186 -> 0.270 (two-layer
-# gold; docs/results.md)
+# albedo. Dropping the skip here too was measured on both texture benches (2026-12-06,
+# 95 rows of 19 materials, seed 0): a wash, so the rule stays. The shared shapes'
+# geometric-mean ratio without it 1.009 without a prior and 1.002 with the scan's
+# texture (7 better and 7 worse by 5 %; 10 and 9): degraded Spot better (0.94 and
+# 0.96; within 1.3x of the untextured capture 18 of 19 against 16), the exact numpy
+# scene worse (1.09 and 1.05: fruitwood 0.083 -> 0.217, polished aluminium 0.248 ->
+# 0.494), degraded Spot registered on the scan worse with its texture (1.02; 2
+# better, 5 worse). Untextured photos are always refitted: a skip there cost the
+# blunted bunny's Balanced median 0.186 -> 0.270 (two-layer gold; docs/results.md)
 ENERGY_TOLERANCE = 0.05
 # Where the photos disagree on the chosen trial's energy by more than they miss it
 # together (energy_agreement), the refit is kept only if it reconciles them: every
