@@ -178,7 +178,8 @@ class AlbedoMap:
     channel ``F``, ``p``, ``spread`` (the albedo's relative spread beyond its
     estimation noise), ``noise`` (the photos' relative noise as the residuals show
     it); ``prior_scale`` (3,) or None; counts per coverage code; ``misfit``
-    (:func:`log_misfit` of the fit); ``held_out`` (:func:`held_out_misfits`, or None
+    (:func:`log_misfit` of the fit) and ``misfit_where`` (over ``estimate``'s
+    ``misfit_where`` observations, or None); ``held_out`` (:func:`held_out_misfits`, or None
     without the observations' photos); ``shape_correction`` (None when not tried,
     else whether it was ``kept``, the held-out misfits ``held_out_with`` and
     ``held_out_without`` it, ``bins``, and per channel the factors' ``range``).
@@ -288,7 +289,8 @@ def _rows(name: str, a, n: int) -> np.ndarray:
 
 
 def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, views=None,
-             sensitivity=None, settings: AlbedoSettings | None = None) -> AlbedoMap:
+             sensitivity=None, misfit_where=None,
+             settings: AlbedoSettings | None = None) -> AlbedoMap:
     """The per-texel albedo of one region (see the module docstring).
 
     texel: (N,) int, each observation's flat texel (:func:`texel_index`; -1 for
@@ -307,7 +309,9 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     moves, relative, per radian its normal turns (the caller's model: the light's
     slant and the table's slope, ``core.method.textured.normal_sensitivity``), or
     None: with it and a prior the data's error grows with it where the scan's
-    normals are off (:func:`prior_weighting`).
+    normals are off (:func:`prior_weighting`). misfit_where: (N,) bool or None:
+    the observations over which ``stats["misfit_where"]`` is also given (the
+    same :func:`log_misfit`; None when no observation of it has a texel).
 
     ValueError (one sentence) for shapes that do not match, NaN or Inf in the
     observations, negative diffuse, or when no observation constrains any texel.
@@ -352,8 +356,14 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
                 sensitivity < 0.0).any():
             raise ValueError(f"sensitivity must be {n} finite values >= 0, "
                              f"got {sensitivity.shape}")
+    if misfit_where is not None:
+        misfit_where = np.asarray(misfit_where)
+        if misfit_where.shape != (n,) or misfit_where.dtype != bool:
+            raise ValueError(f"misfit_where must be {n} booleans, got {misfit_where.dtype} "
+                             f"{misfit_where.shape}")
     keep = texel >= 0
     texel, rho, diffuse, specular = texel[keep], rho[keep], diffuse[keep], specular[keep]
+    where = None if misfit_where is None else misfit_where[keep]
     bins, n_bins = (None, 0) if cells is None else shape_bins(cells[keep])
     count = np.bincount(texel, minlength=n_texels)
     # the fits run over the texels that have observations only (a 4k texture has
@@ -469,7 +479,9 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
         shape=(height, width), albedo=albedo, coverage=coverage, observations=count,
         reference=reference, constant=constant, reason=reason, measured=measured,
         stats={"channels": channel_stats, "texels": counts, "pattern": pattern,
-               "misfit": log_misfit(rho, predicted), "held_out": held_out,
+               "misfit": log_misfit(rho, predicted),
+               "misfit_where": None if where is None or not where.any()
+               else log_misfit(rho[where], predicted[where]), "held_out": held_out,
                "shape_correction": correction,
                "prior_scale": None if k is None else k.tolist(),
                "prior_weighting": weighting, "prior_agreement": agreement},

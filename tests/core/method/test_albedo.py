@@ -430,6 +430,20 @@ def test_the_misfit_of_a_mirror_is_read_on_its_lit_observations():
     assert np.isfinite(albedo.log_misfit(np.zeros((5, 3)), np.ones((5, 3))))
 
 
+
+def test_the_misfit_over_chosen_observations_is_the_same_measure_on_them():
+    """``misfit_where``: all observations give ``misfit`` itself; none (or no mask)
+    gives None; a mask of the wrong length is one sentence."""
+    texel, rho, d, s = plane_observations(texture())
+    n = len(texel)
+    every = albedo.estimate(texel, rho, d, s, SHAPE, misfit_where=np.ones(n, bool))
+    assert every.stats["misfit_where"] == every.stats["misfit"]
+    assert albedo.estimate(texel, rho, d, s, SHAPE,
+                           misfit_where=np.zeros(n, bool)).stats["misfit_where"] is None
+    assert albedo.estimate(texel, rho, d, s, SHAPE).stats["misfit_where"] is None
+    with pytest.raises(ValueError, match="misfit_where must be"):
+        albedo.estimate(texel, rho, d, s, SHAPE, misfit_where=np.ones(n - 1, bool))
+
 def tilted_plane(tex, *, normal_sigma=0.1, seed=4, lights=LIGHTS[1:2], views=3):
     """A Lambertian texture on texels whose scan normals tilt by up to 55 degrees
     (each texel its own), photographed under the four lights; the true normal is the
