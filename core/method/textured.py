@@ -19,7 +19,7 @@ colour scaled per texel of the scan's UV map:
   lower, ``WHOLE_MARGIN``, over the observations where the two differ: those above
   the cap, ``MIN_HIGHLIGHT`` or more, one model meeting them to
   ``HIGHLIGHT_MISFIT_MAX``, else over all; over all, a whole-scaled
-  material with few highlights came out within 6 % either way, the diffuse model was
+  material with few highlights came out within 7 % either way, the diffuse model was
   kept and the highlights were divided by the wrong colour: exact Spot's
   alumina-oxide 0.50 against 0.065 untextured; the same measure for both, where each
   model's own noise estimate is not: on exact Spot's gold, whose whole table scales,

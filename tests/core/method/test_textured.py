@@ -344,7 +344,7 @@ def test_a_whole_scaled_material_with_few_highlights_gets_the_whole_model(name):
     """Measured materials whose whole table scales with a 17:1 texture but whose
     highlights (the observations above the diffuse model's cap, where the two
     models differ) are under 3 % of the observations: over all observations the two
-    misfits are within 6 %, so that margin chose the diffuse model and the shape
+    misfits are within 7 %, so that margin chose the diffuse model and the shape
     was fitted to highlights divided by the wrong colour (the texture bench's exact
     numpy scene: alumina-oxide 0.436 against 0.172 untextured). The choice reads
     the misfits where the models differ."""
