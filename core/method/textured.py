@@ -294,8 +294,9 @@ def estimate_texture(table, samples, texel, shape, settings: albedo_.AlbedoSetti
     sensitivity = normal_sensitivity(samples.subset(at), at_cells)
     values = at_cells(cells)
     delta = diffuse_level(table)
-    # where the two models differ: above the diffuse model's cap (a highlight)
-    differ = np.any(values > CAP * delta, axis=1)
+    # where the two models differ: the diffuse model's uncoloured rest (a highlight)
+    differ = np.any(colour_part(values, delta, MODELS["diffuse"])[1] > 0.0, axis=1)
+    n_differ = int(differ.sum())
     fits, noise, misfit, errors = {}, {}, {}, []
     highlight = {}
     for name, cap in MODELS.items():
@@ -318,14 +319,14 @@ def estimate_texture(table, samples, texel, shape, settings: albedo_.AlbedoSetti
     # judged where the models differ when enough observations are there
     score = misfit
     if len(highlight) == 2 and None not in highlight.values() \
-            and int(differ.sum()) >= MIN_HIGHLIGHT \
+            and n_differ >= MIN_HIGHLIGHT \
             and min(highlight.values()) <= HIGHLIGHT_MISFIT_MAX:
         score = highlight
     if "whole" in score and score["whole"] < WHOLE_MARGIN * score.get("diffuse", np.inf):
         model = "whole"
     return RegionTexture(map=fits[model], model=model, delta=delta, noise=noise,
                          misfit=misfit, highlight_misfit=highlight,
-                         highlight_observations=int(differ.sum()))
+                         highlight_observations=n_differ)
 
 
 MIN_COS = 0.05  # n.l below this counts as this in the sensitivity (tan at most 20)
