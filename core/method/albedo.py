@@ -378,7 +378,7 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     fits = fitted(None, 0)
     held_out = None if views is None else held_out_misfits(
         local, views, rho, diffuse, specular, fits, len(used), settings=settings)
-    correction = None
+    correction, held_bins = None, (None, 0)
     if bins is not None and held_out is not None and held_out["observations"] >= _MIN_HELD_OUT:
         # the correction is kept where it predicts each photo from the others better
         corrected = fitted(bins, n_bins)
@@ -388,7 +388,7 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
                       "held_out_with": with_it["textured"],
                       "held_out_without": held_out["textured"], "bins": int(n_bins)}
         if correction["kept"]:
-            fits, held_out = corrected, with_it
+            fits, held_out, held_bins = corrected, with_it, (bins, n_bins)
     a = np.zeros((n_texels, 3))  # data-only estimates
     h = np.zeros((n_texels, 3))  # their precisions (0: no data)
     a[used] = np.stack([f["a"] for f in fits], axis=1)
@@ -414,22 +414,26 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
     k = None if prior is None else _prior_scale(a, measured, prior)
     agreement = None if prior is None else prior_agreement(a, measured, prior, k,
                                                            settings.p_level)
-    if agreement is not None and agreement["agrees"] and (
-            held_out is None or held_out["observations"] < _MIN_HELD_OUT
-            or held_out["textured"] < held_out["constant"]):
-        # the scan's texture, made from other photos, shows the data's pattern: the
-        # variation is the surface's, even where one view's shading error also varies;
-        # not where the data's texture predicts each photo from the others worse than
-        # one colour does (a blunted scan's metal: that texture is its shading error)
-        predicts = True
     constant = not (any(textured) and predicts)
+    scan_predicts = False
+    if agreement is not None and not constant and held_out is not None \
+            and held_out["observations"] >= _MIN_HELD_OUT:
+        # the scan's texture, made from other photos, predicts each photo as the
+        # photos' own texture does, from the others: it is the better of the two
+        # where it predicts them at least as well (a blunted scan's metal, whose
+        # photos' texture is its shading error)
+        held_out = held_out_misfits(local, views, rho, diffuse, specular, fits, len(used),
+                                    *held_bins, settings, scan_texture=(k * prior)[used])
+        scan_predicts = held_out["prior_observations"] >= _MIN_HELD_OUT and (
+            held_out["prior"] <= held_out["textured_at_prior"])
     # the scan's texture is kept unless one colour fits the data significantly better
     # (then one colour, or the data's own texture) where the photos cannot show a
-    # texture, or where they show one the scan's texture neither agrees with nor
+    # texture, where they show one the scan's texture neither agrees with nor
     # rejects (a blunted mirror's texture, which is its shading error: the user's
-    # texture is the better bet, and one colour is surely wrong where it varies)
+    # texture is the better bet, and one colour is surely wrong where it varies),
+    # and where it predicts the photos at least as well as theirs
     kept = bool(agreement is not None and not agreement["rejects"] and (
-        constant or not agreement["agrees"]))
+        constant or not agreement["agrees"] or scan_predicts))
     constant = constant and not kept
     # the region's colour: its one value (the estimate of least variance), or the
     # mean over the measured texels (each texel as much surface as another)
@@ -567,7 +571,7 @@ HELD_OUT_MARGIN = 0.8  # a texture must predict the held-out photos this much be
 
 
 def held_out_misfits(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=0,
-                     settings: AlbedoSettings | None = None) -> dict:
+                     settings: AlbedoSettings | None = None, scan_texture=None) -> dict:
     """Leave one photo out: each observation predicted from the other photos'
     observations only, by its texel's albedo and by the region's one colour, both
     with the fits' weights; with ``bins`` the shape's correction of each bin is
@@ -575,7 +579,12 @@ def held_out_misfits(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=
     1). Returns {"textured", "constant": :func:`log_misfit` of the two predictions,
     "observations": how many were predicted (those whose texel another photo also
     sees)}. texel: (N,) local texel ids in [0, n_texels); views: (N,) photo ids;
-    rho, d, s: (N, 3); fits: per channel ``_channel``'s result."""
+    rho, d, s: (N, 3); fits: per channel ``_channel``'s result. scan_texture: (n_texels, 3)
+    the scan's texture at the texels, scaled (NaN where it has none), or None;
+    given, each observation is also predicted by it (made from other photos than
+    the lit ones) and the result adds "prior" and "textured_at_prior", the misfits
+    of its prediction and of the photos' texture over the observations it covers,
+    and "prior_observations" (how many)."""
     settings = settings or AlbedoSettings()
     n_views = int(views.max(initial=0)) + 1
 
@@ -589,7 +598,7 @@ def held_out_misfits(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=
     texel_pair = pairs(texel)
     bin_pair = None if bins is None else pairs(bins)
 
-    tex, one = np.zeros_like(rho), np.zeros_like(rho)
+    tex, one, scan = np.zeros_like(rho), np.zeros_like(rho), np.zeros_like(rho)
     # where the colour part is the smaller share, both predictions are the shared
     # part's and the comparison would be decided by noise: those are left out
     held = np.sum(np.stack([f["a"][texel] for f in fits], axis=1) * d, axis=1) >= np.sum(s, axis=1)
@@ -614,8 +623,16 @@ def held_out_misfits(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=
                          0.0)
         tex[:, c] = mi * (a_tex * d[:, c] + s[:, c])
         one[:, c] = mi * (a_one * d[:, c] + s[:, c])
-    return {"textured": log_misfit(rho[held], tex[held]),
-            "constant": log_misfit(rho[held], one[held]), "observations": int(held.sum())}
+        if scan_texture is not None:
+            scan[:, c] = mi * (np.nan_to_num(scan_texture[texel, c]) * d[:, c] + s[:, c])
+    out = {"textured": log_misfit(rho[held], tex[held]),
+           "constant": log_misfit(rho[held], one[held]), "observations": int(held.sum())}
+    if scan_texture is not None:
+        covered = held & np.isfinite(scan_texture[texel]).all(axis=1)
+        out.update(prior=log_misfit(rho[covered], scan[covered]),
+                   textured_at_prior=log_misfit(rho[covered], tex[covered]),
+                   prior_observations=int(covered.sum()))
+    return out
 
 
 def log_misfit(rho, predicted) -> float:
