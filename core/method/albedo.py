@@ -54,12 +54,15 @@ closed-form and vectorised with ``bincount``):
   is surely wrong where the texture varies, and with one light a blunted
   scan's shading error looks like a texture to every test the photos can make
   of their own: on degraded Spot a mirror's data are too far off to show a
-  17:1 texture that the scan's texture holds to 1 %. Agreement makes the
-  photos' texture the surface's (mixed with the scan's) only where it predicts
-  each photo from the other photos at least better than one colour does: a
-  texture the other photos refute is that view's error, however well the
-  scan's texture matches it (degraded Spot's gold: mixed 0.479 off, kept
-  0.011).
+  17:1 texture that the scan's texture holds to 1 %. The photos' own texture is
+  mixed with the scan's only where it predicts each photo from the other photos
+  clearly better than one colour does (:data:`HELD_OUT_MARGIN`) and better than
+  the scan's texture does (made from other photos, it is held out of every lit
+  one): a texture the other photos refute is that view's error, however well
+  the scan's texture agrees with it (degraded Spot's gold: mixed 0.479 off,
+  kept 0.011), and where the scan's texture predicts the photos at least as
+  well, the photos' adds their error to it (the numpy scene's blunted silver:
+  mixed 0.376 off, kept 0.070).
 
 **The shared shape, corrected per bin.** Given the observations' MERL cells, the
 shape is also corrected by a factor per coarse bin of directions
@@ -902,10 +905,21 @@ def _reason(constant: bool, channel_stats: list, settings: AlbedoSettings,
                     f"{held_out['textured']:.3f}, one color to {held_out['constant']:.3f} "
                     f"(robust RMS log error)")
     if kept is not None:
-        return (f"The scan's texture, scaled to the photos: they cannot tell its pattern "
-                f"from one color, nor one color from it (squared log error to the texture "
-                f"{kept['to_prior']:.3f}, to one color {kept['to_one']:.3f}, Wilcoxon p = "
-                f"{kept['p']:.2g} and {kept['p_one_colour']:.2g}); {numbers}{predicts}.")
+        errors = (f"squared log error to the texture {kept['to_prior']:.3f}, to one color "
+                  f"{kept['to_one']:.3f}, Wilcoxon p = {kept['p']:.2g} and "
+                  f"{kept['p_one_colour']:.2g}")
+        if kept["agrees"] and held_out is not None and "prior" in held_out \
+                and held_out["prior"] <= held_out["textured_at_prior"]:
+            because = (f"it predicts each photo at least as well as their own texture does "
+                       f"from the other photos ({held_out['prior']:.3f} against "
+                       f"{held_out['textured_at_prior']:.3f}, robust RMS log error)")
+        elif kept["agrees"]:
+            because = (f"it agrees with their pattern ({errors}), but theirs does not "
+                       f"predict each photo from the others clearly better than one color")
+        else:
+            because = (f"they cannot tell its pattern from one color, nor one color from "
+                       f"it ({errors})")
+        return f"The scan's texture, scaled to the photos: {because}; {numbers}{predicts}."
     if not constant:
         return f"Textured: {numbers}{predicts}."
     if worst["p"] >= settings.p_level:

@@ -264,6 +264,43 @@ def test_a_texture_that_predicts_the_other_photos_worse_than_one_colour_keeps_th
     assert err < 0.25 * np.median(relative_error(data_only.albedo, tex))  # ... 0.322
 
 
+def test_a_scan_texture_that_predicts_the_photos_better_than_theirs_is_kept():
+    """Errors of 15 % that change from photo to photo on a 40 % texture: the photos'
+    texture predicts each photo from the others clearly better than one colour does
+    (0.19 against 0.38) and the scan's texture agrees with it, so before the two
+    were mixed, the data dominating (0.076 off). The scan's texture (1 % off)
+    predicts each photo better still (0.15, the photo's own error), so it is kept."""
+    tex, texel, rho, d, s, views, prior = _plane_with_errors(0.4, 0.15, per="photo")
+    result = albedo.estimate(texel, rho, d, s, SHAPE, views=views, prior=prior)
+    held = result.stats["held_out"]
+    assert held["textured"] < albedo.HELD_OUT_MARGIN * held["constant"], held
+    assert held["prior"] < held["textured_at_prior"], held  # measured 0.148 against 0.193
+    assert held["prior_observations"] == held["observations"]  # the prior covers every texel
+    assert result.stats["prior_agreement"]["agrees"]
+    assert result.stats["pattern"] == "scan texture", result.reason
+    assert "at least as well as their own texture" in result.reason, result.reason
+    err = np.median(relative_error(result.albedo, tex))
+    data_only = albedo.estimate(texel, rho, d, s, SHAPE, views=views)
+    assert err <= 0.02, err  # measured 0.007
+    assert err < 0.25 * np.median(relative_error(data_only.albedo, tex))  # ... 0.088
+
+
+def test_a_photos_texture_that_predicts_them_better_than_the_scans_is_mixed_with_it():
+    """Exact data (1 % noise) and a scan texture 10 % off: the photos' texture
+    predicts each photo from the others to their noise, the scan's texture misses
+    by its error, so the photos' texture is mixed with it and the albedo is nearer
+    the truth than the scan's texture."""
+    tex, texel, rho, d, s, views, _ = _plane_with_errors(0.4, 0.0, per="photo")
+    rng = np.random.default_rng(3)
+    prior = tex * np.exp(0.1 * rng.standard_normal(tex.shape)) / 0.7
+    result = albedo.estimate(texel, rho, d, s, SHAPE, views=views, prior=prior)
+    held = result.stats["held_out"]
+    assert held["textured_at_prior"] < held["prior"], held  # measured 0.010 against 0.086
+    assert result.stats["pattern"] == "photos and scan texture", result.reason
+    err = np.median(relative_error(result.albedo, tex))
+    assert err < 0.25 * np.median(relative_error(prior * 0.7, tex)), err  # 0.003, 0.068
+
+
 def test_a_texture_the_scan_texture_neither_agrees_with_nor_rejects_gives_way_to_it():
     """Errors of 50 % per texel, the same in every photo (one light, wrong normals), on
     a 1 % texture: the photos show a texture by every test of their own (it predicts
