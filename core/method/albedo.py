@@ -182,10 +182,12 @@ class AlbedoMap:
     estimation noise), ``noise`` (the photos' relative noise as the residuals show
     it); ``prior_scale`` (3,) or None; counts per coverage code; ``misfit``
     (:func:`log_misfit` of the fit) and ``misfit_where`` (over ``estimate``'s
-    ``misfit_where`` observations, or None); ``held_out`` (:func:`held_out_misfits`, or None
-    without the observations' photos); ``shape_correction`` (None when not tried,
-    else whether it was ``kept``, the held-out misfits ``held_out_with`` and
-    ``held_out_without`` it, ``bins``, and per channel the factors' ``range``).
+    ``misfit_where`` observations, or None); ``held_out`` (:func:`held_out_misfits`,
+    or None without the observations' photos; with the scan's texture's ``prior``
+    and ``textured_at_prior`` where the two textures were compared);
+    ``shape_correction`` (None when not tried, else whether it was ``kept``, the
+    held-out misfits ``held_out_with`` and ``held_out_without`` it, ``bins``, and per
+    channel the factors' ``range``).
     """
 
     shape: tuple
@@ -379,19 +381,21 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
                          bins, n_bins) for c in range(3)]
 
     fits = fitted(None, 0)
-    held_out = None if views is None else held_out_misfits(
+    predictions = None if views is None else _held_out_predictions(
         local, views, rho, diffuse, specular, fits, len(used), settings=settings)
-    correction, held_bins = None, (None, 0)
+    held_out = None if predictions is None else _held_out_scores(rho, predictions)
+    correction = None
     if bins is not None and held_out is not None and held_out["observations"] >= _MIN_HELD_OUT:
         # the correction is kept where it predicts each photo from the others better
         corrected = fitted(bins, n_bins)
-        with_it = held_out_misfits(local, views, rho, diffuse, specular, corrected, len(used),
-                                   bins, n_bins, settings)
+        corrected_predictions = _held_out_predictions(
+            local, views, rho, diffuse, specular, corrected, len(used), bins, n_bins, settings)
+        with_it = _held_out_scores(rho, corrected_predictions)
         correction = {"kept": with_it["textured"] < held_out["textured"],
                       "held_out_with": with_it["textured"],
                       "held_out_without": held_out["textured"], "bins": int(n_bins)}
         if correction["kept"]:
-            fits, held_out, held_bins = corrected, with_it, (bins, n_bins)
+            fits, held_out, predictions = corrected, with_it, corrected_predictions
     a = np.zeros((n_texels, 3))  # data-only estimates
     h = np.zeros((n_texels, 3))  # their precisions (0: no data)
     a[used] = np.stack([f["a"] for f in fits], axis=1)
@@ -425,8 +429,8 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
         # photos' own texture does, from the others: it is the better of the two
         # where it predicts them at least as well (a blunted scan's metal, whose
         # photos' texture is its shading error)
-        held_out = held_out_misfits(local, views, rho, diffuse, specular, fits, len(used),
-                                    *held_bins, settings, scan_texture=(k * prior)[used])
+        held_out = _held_out_scores(rho, predictions, diffuse, specular, local,
+                                    (k * prior)[used])
         scan_predicts = held_out["prior_observations"] >= _MIN_HELD_OUT and (
             held_out["prior"] <= held_out["textured_at_prior"])
     # the scan's texture is kept unless one colour fits the data significantly better
@@ -588,6 +592,26 @@ def held_out_misfits(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=
     the lit ones) and the result adds "prior" and "textured_at_prior", the misfits
     of its prediction and of the photos' texture over the observations it covers,
     and "prior_observations" (how many)."""
+    predictions = _held_out_predictions(texel, views, rho, d, s, fits, n_texels, bins, n_bins,
+                                        settings)
+    return _held_out_scores(rho, predictions, d, s, texel, scan_texture)
+
+
+@dataclasses.dataclass(frozen=True)
+class _HeldOut:
+    """:func:`held_out_misfits`' predictions, each (N, 3): by the texel's albedo from
+    the other photos (``textured``) and by the region's one colour from them
+    (``constant``); the shape's correction each used (``correction``); and (N,)
+    ``held``, the observations predicted."""
+
+    textured: np.ndarray
+    constant: np.ndarray
+    correction: np.ndarray
+    held: np.ndarray
+
+
+def _held_out_predictions(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=0,
+                          settings: AlbedoSettings | None = None) -> _HeldOut:
     settings = settings or AlbedoSettings()
     n_views = int(views.max(initial=0)) + 1
 
@@ -601,7 +625,7 @@ def held_out_misfits(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=
     texel_pair = pairs(texel)
     bin_pair = None if bins is None else pairs(bins)
 
-    tex, one, scan = np.zeros_like(rho), np.zeros_like(rho), np.zeros_like(rho)
+    tex, one, correction = np.zeros_like(rho), np.zeros_like(rho), np.zeros_like(rho)
     # where the colour part is the smaller share, both predictions are the shared
     # part's and the comparison would be decided by noise: those are left out
     held = np.sum(np.stack([f["a"][texel] for f in fits], axis=1) * d, axis=1) >= np.sum(s, axis=1)
@@ -626,11 +650,20 @@ def held_out_misfits(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=
                          0.0)
         tex[:, c] = mi * (a_tex * d[:, c] + s[:, c])
         one[:, c] = mi * (a_one * d[:, c] + s[:, c])
-        if scan_texture is not None:
-            scan[:, c] = mi * (np.nan_to_num(scan_texture[texel, c]) * d[:, c] + s[:, c])
+        correction[:, c] = mi
+    return _HeldOut(textured=tex, constant=one, correction=correction, held=held)
+
+
+def _held_out_scores(rho, predictions: _HeldOut, d=None, s=None, texel=None,
+                     scan_texture=None) -> dict:
+    """:func:`held_out_misfits`' result from its predictions; with ``scan_texture``
+    (and the observations' d, s and local texel), also the scan texture's."""
+    held, tex = predictions.held, predictions.textured
     out = {"textured": log_misfit(rho[held], tex[held]),
-           "constant": log_misfit(rho[held], one[held]), "observations": int(held.sum())}
+           "constant": log_misfit(rho[held], predictions.constant[held]),
+           "observations": int(held.sum())}
     if scan_texture is not None:
+        scan = predictions.correction * (np.nan_to_num(scan_texture[texel]) * d + s)
         covered = held & np.isfinite(scan_texture[texel]).all(axis=1)
         out.update(prior=log_misfit(rho[covered], scan[covered]),
                    textured_at_prior=log_misfit(rho[covered], tex[covered]),
