@@ -62,13 +62,7 @@ closed-form and vectorised with ``bincount``):
   the scan's texture agrees with it (degraded Spot's gold: mixed 0.479 off,
   kept 0.011), and where the scan's texture predicts the photos at least as
   well, the photos' adds their error to it (the numpy scene's blunted silver:
-  mixed 0.376 off, kept 0.070), unless the scan's texture lies farther from each
-  photo's own texture than the photos' lie from one another
-  (:func:`photo_spread`): from two photos a texel's texture also carries the
-  table's misses at the other photos' cells, which the texture of all the
-  photos averages away, so on an exact scan a scan texture worse than any one
-  photo's can win the held-out comparison (exact Spot's gold: kept 0.018 off,
-  mixed 0.010).
+  mixed 0.376 off, kept 0.070).
 
 **The shared shape, corrected per bin.** Given the observations' MERL cells, the
 shape is also corrected by a factor per coarse bin of directions
@@ -190,8 +184,7 @@ class AlbedoMap:
     (:func:`log_misfit` of the fit) and ``misfit_where`` (over ``estimate``'s
     ``misfit_where`` observations, or None); ``held_out`` (:func:`held_out_misfits`,
     or None without the observations' photos; with the scan's texture's ``prior``
-    and ``textured_at_prior``, and :func:`photo_spread`'s ``between_photos`` and
-    ``photos_to_scan``, where the two textures were compared);
+    and ``textured_at_prior`` where the two textures were compared);
     ``shape_correction`` (None when not tried, else whether it was ``kept``, the
     held-out misfits ``held_out_with`` and ``held_out_without`` it, ``bins``, and per
     channel the factors' ``range``).
@@ -438,13 +431,8 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
         # photos' texture is its shading error)
         held_out = _held_out_scores(rho, predictions, diffuse, specular, local,
                                     (k * prior)[used])
-        # ... and no farther from each photo's own texture than the photos' are from
-        # one another: the leave-one-out comparison charges the photos' texture with
-        # the table's errors at the other photos' cells too, so on an exact scan the
-        # scan's texture, a few per cent off, can out-predict a better texture
-        held_out.update(photo_spread(local, views, rho, diffuse, specular, fits,
-                                     len(used), (k * prior)[used]))
-        scan_predicts = _scan_predicts(held_out)
+        scan_predicts = held_out["prior_observations"] >= _MIN_HELD_OUT and (
+            held_out["prior"] <= held_out["textured_at_prior"])
     # the scan's texture is kept unless one colour fits the data significantly better
     # (then one colour, or the data's own texture) where the photos cannot show a
     # texture, where they show one the scan's texture neither agrees with nor
@@ -681,57 +669,6 @@ def _held_out_scores(rho, predictions: _HeldOut, d=None, s=None, texel=None,
                    textured_at_prior=log_misfit(rho[covered], tex[covered]),
                    prior_observations=int(covered.sum()))
     return out
-
-
-def photo_spread(texel, views, rho, d, s, fits, n_texels, scan_texture) -> dict:
-    """How far each photo's own texture lies from another photo's, and from the
-    scan's: the texel's albedo from one photo's observations alone (with the fits'
-    weights and shape correction), compared in logarithms over the texels both
-    give, each channel's median difference taken out (the textures' levels are
-    not compared), as the robust variance (1.4826 MAD, squared) of the
-    differences. Returns {"between_photos": the mean over pairs of photos,
-    "photos_to_scan": the mean over photos of their variance against the scan's
-    texture}, each weighed by its texels, None where fewer than
-    ``_MIN_HELD_OUT`` texels are shared. With independent errors of variance
-    ``e_p`` per photo and ``e_s`` for the scan's texture, these are ``2 e_p`` and
-    ``e_p + e_s``: the scan's texture is no worse than one photo's where the
-    second is at most the first. texel: (N,) local texel ids in [0, n_texels);
-    views: (N,) photo ids; rho, d, s: (N, 3); fits: per channel ``_channel``'s
-    result; scan_texture: (n_texels, 3), scaled, NaN where it has none."""
-    n_views = int(views.max(initial=-1)) + 1
-    logs = []
-    for v in range(n_views):
-        at = views == v
-        one = np.full((n_texels, 3), np.nan, dtype=np.float32)
-        for c, f in enumerate(fits):
-            dm = f["mi"][at] * d[at, c]
-            w = np.bincount(texel[at], f["weight"][at] * dm * dm, minlength=n_texels)
-            b = np.bincount(texel[at], f["weight"][at] * dm * (rho[at, c] - f["mi"][at] * s[at, c]),
-                            minlength=n_texels)
-            good = (w > 0.0) & (b > 0.0)
-            one[good, c] = np.log(b[good] / w[good])
-        logs.append(one)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scan = np.log(np.where(scan_texture > 0.0, scan_texture, np.nan)).astype(np.float32)
-
-    def spread(x, y):  # (robust variance, texels) of x - y, each channel's median out
-        both = np.isfinite(x).all(axis=1) & np.isfinite(y).all(axis=1)
-        n = int(both.sum())
-        if n < _MIN_HELD_OUT:
-            return None
-        diff = (x[both] - y[both]).astype(np.float64)
-        diff -= np.median(diff, axis=0)
-        return (1.4826 * float(np.median(np.abs(diff)))) ** 2, n
-
-    def mean(pairs):
-        pairs = [p for p in pairs if p is not None]
-        if not pairs:
-            return None
-        return float(sum(v * n for v, n in pairs) / sum(n for _, n in pairs))
-
-    return {"between_photos": mean(spread(logs[i], logs[j]) for i in range(n_views)
-                                   for j in range(i + 1, n_views)),
-            "photos_to_scan": mean(spread(x, scan) for x in logs)}
 
 
 def log_misfit(rho, predicted) -> float:
@@ -989,19 +926,6 @@ def _fill(albedo, known, shape, reference) -> np.ndarray:
     return albedo[nearest]
 
 
-def _scan_predicts(held_out: dict) -> bool:
-    """Whether the scan's texture is the better of the two by ``held_out`` (with the
-    keys of :func:`_held_out_scores` given the scan's texture and of
-    :func:`photo_spread`): it predicts each photo from the others at least as well
-    as the photos' texture does, over enough observations, and lies no farther
-    from each photo's own texture than the photos' lie from one another (where
-    that can be told)."""
-    spread = (held_out.get("photos_to_scan"), held_out.get("between_photos"))
-    return held_out.get("prior_observations", 0) >= _MIN_HELD_OUT and (
-        held_out["prior"] <= held_out["textured_at_prior"]) and (
-        None in spread or spread[0] <= spread[1])
-
-
 def _reason(constant: bool, channel_stats: list, settings: AlbedoSettings,
             held_out: dict | None = None, kept: dict | None = None) -> str:
     worst = max(channel_stats, key=lambda s: s["spread"] - s["noise"])
@@ -1017,16 +941,11 @@ def _reason(constant: bool, channel_stats: list, settings: AlbedoSettings,
         errors = (f"squared log error to the texture {kept['to_prior']:.3f}, to one color "
                   f"{kept['to_one']:.3f}, Wilcoxon p = {kept['p']:.2g} and "
                   f"{kept['p_one_colour']:.2g}")
-        if kept["agrees"] and held_out is not None and _scan_predicts(held_out):
-            spread = ""
-            if None not in (held_out["photos_to_scan"], held_out["between_photos"]):
-                spread = (f", and lies no farther from each photo's own texture than the "
-                          f"photos' lie from one another (robust RMS log difference "
-                          f"{np.sqrt(held_out['photos_to_scan']):.3f} against "
-                          f"{np.sqrt(held_out['between_photos']):.3f})")
+        if kept["agrees"] and held_out is not None and "prior" in held_out \
+                and held_out["prior"] <= held_out["textured_at_prior"]:
             because = (f"it predicts each photo at least as well as their own texture does "
                        f"from the other photos ({held_out['prior']:.3f} against "
-                       f"{held_out['textured_at_prior']:.3f}, robust RMS log error){spread}")
+                       f"{held_out['textured_at_prior']:.3f}, robust RMS log error)")
         elif kept["agrees"]:
             because = (f"it agrees with their pattern ({errors}), but theirs does not "
                        f"predict each photo from the others clearly better than one color")

@@ -285,33 +285,6 @@ def test_a_scan_texture_that_predicts_the_photos_better_than_theirs_is_kept():
     assert err < 0.25 * np.median(relative_error(data_only.albedo, tex))  # ... 0.088
 
 
-def test_a_scan_texture_worse_than_each_photos_own_is_not_kept_for_its_held_out_lead():
-    """Three photos, each wrong by a log-normal 60 % at a quarter of its (texel,
-    photo) pairs (the table missing at a highlight's cells, exact normals): the
-    photos' texture fitted to all three is 0.5 % off, the scan's 2 % off. From two
-    photos a texel's texture still carries the other photos' misses, so the
-    scan's texture predicts each photo the better of the two. But it lies farther
-    from each photo's own texture than the photos' lie from one another, so the
-    photos' texture is mixed with it, not replaced by it."""
-    lights = LIGHTS[:3]
-    rng = np.random.default_rng(12)
-    patches = 1.0 + 0.4 * rng.standard_normal((8, 8, 1))
-    tex = (0.4 * np.repeat(np.repeat(patches, 4, axis=0), 4, axis=1) * np.ones(3)).reshape(-1, 3)
-    texel, rho, d, s, _, views = plane_photos(tex, per_texel=2, seed=3, lights=lights)
-    t = SHAPE[0] * SHAPE[1]
-    missed = rng.random((t, len(lights))) < 0.25
-    err = np.where(missed, np.exp(0.6 * rng.standard_normal((t, len(lights)))), 1.0)
-    prior = tex * np.exp(0.03 * rng.standard_normal(tex.shape)) / 0.7
-    result = albedo.estimate(texel, rho * err[texel, views][:, None], d, s, SHAPE, views=views,
-                             prior=prior)
-    held = result.stats["held_out"]
-    assert held["prior"] < held["textured_at_prior"], held  # measured 0.112 against 0.121
-    assert held["between_photos"] < held["photos_to_scan"], held  # 0.0009 against 0.0021
-    assert result.stats["pattern"] == "photos and scan texture", result.reason
-    err = np.median(relative_error(result.albedo, tex))
-    assert err < 0.5 * np.median(relative_error(prior * 0.7, tex)), err  # 0.0055, 0.021
-
-
 def test_a_photos_texture_that_predicts_them_better_than_the_scans_is_mixed_with_it():
     """Exact data (1 % noise) and a scan texture 10 % off: the photos' texture
     predicts each photo from the others to their noise, the scan's texture misses
