@@ -165,11 +165,10 @@ def _run(obj, name, seed, scan, mode, B, arrays, inputs, truth) -> list[dict]:
     return rows
 
 
-def _scores(table, truth, arrays, inputs, reliable_pixels=None, true_radiance=None) -> dict:
+def _scores(table, truth, arrays, inputs, reliable_pixels=None) -> dict:
     """Sphere error, self-consistency on the scan (over the region's pixels, and over
     ``reliable_pixels`` (N, 3) (view, row, column)) and on the true geometry, and
-    energy of one chosen table. true_radiance: the true table's per-photo radiance on
-    the true geometry (:func:`true_geometry_radiance`), or None to shade it here."""
+    energy of one chosen table."""
     if not np.all(np.isfinite(table)):
         raise AssertionError("a chosen table holds NaN or Inf")
     num = den = num_r = den_r = 0.0
@@ -185,9 +184,7 @@ def _scores(table, truth, arrays, inputs, reliable_pixels=None, true_radiance=No
             num_r += float(np.sum((a - b) ** 2))
             den_r += float(np.sum(b**2))
     on_truth = true_geometry_radiance(table, arrays, inputs)
-    if true_radiance is None:
-        true_radiance = true_geometry_radiance(truth, arrays, inputs)
-    true_energy = sum(float(np.sum(r)) for r in true_radiance)
+    true_energy = sum(float(np.sum(r)) for r in true_geometry_radiance(truth, arrays, inputs))
     # the photos re-rendered on the true geometry, as issue 15's motivation measures
     # them: what the table alone misses, the scan's normals taken out
     num_t = den_t = 0.0
