@@ -381,16 +381,16 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
                          bins, n_bins) for c in range(3)]
 
     fits = fitted(None, 0)
-    predictions = None if views is None else _held_out_predictions(
+    predictions = None if views is None else held_out_predictions(
         local, views, rho, diffuse, specular, fits, len(used), settings=settings)
-    held_out = None if predictions is None else _held_out_scores(rho, predictions)
+    held_out = None if predictions is None else held_out_misfits(rho, predictions)
     correction = None
     if bins is not None and held_out is not None and held_out["observations"] >= _MIN_HELD_OUT:
         # the correction is kept where it predicts each photo from the others better
         corrected = fitted(bins, n_bins)
-        corrected_predictions = _held_out_predictions(
+        corrected_predictions = held_out_predictions(
             local, views, rho, diffuse, specular, corrected, len(used), bins, n_bins, settings)
-        with_it = _held_out_scores(rho, corrected_predictions)
+        with_it = held_out_misfits(rho, corrected_predictions)
         correction = {"kept": with_it["textured"] < held_out["textured"],
                       "held_out_with": with_it["textured"],
                       "held_out_without": held_out["textured"], "bins": int(n_bins)}
@@ -429,7 +429,7 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
         # photos' own texture does, from the others: it is the better of the two
         # where it predicts them at least as well (a blunted scan's metal, whose
         # photos' texture is its shading error)
-        held_out = _held_out_scores(rho, predictions, diffuse, specular, local,
+        held_out = held_out_misfits(rho, predictions, diffuse, specular, local,
                                     (k * prior)[used])
         scan_predicts = held_out["prior_observations"] >= _MIN_HELD_OUT and (
             held_out["prior"] <= held_out["textured_at_prior"])
@@ -577,29 +577,9 @@ HELD_OUT_MARGIN = 0.8  # a texture must predict the held-out photos this much be
 # textures were 0.45 to 0.97 off (one colour: 0.37 to 0.43)
 
 
-def held_out_misfits(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=0,
-                     settings: AlbedoSettings | None = None, scan_texture=None) -> dict:
-    """Leave one photo out: each observation predicted from the other photos'
-    observations only, by its texel's albedo and by the region's one colour, both
-    with the fits' weights; with ``bins`` the shape's correction of each bin is
-    also refitted without the photo (a bin that photo alone sees keeps the prior,
-    1). Returns {"textured", "constant": :func:`log_misfit` of the two predictions,
-    "observations": how many were predicted (those whose texel another photo also
-    sees)}. texel: (N,) local texel ids in [0, n_texels); views: (N,) photo ids;
-    rho, d, s: (N, 3); fits: per channel ``_channel``'s result. scan_texture: (n_texels, 3)
-    the scan's texture at the texels, scaled (NaN where it has none), or None;
-    given, each observation is also predicted by it (made from other photos than
-    the lit ones) and the result adds "prior" and "textured_at_prior", the misfits
-    of its prediction and of the photos' texture over the observations it covers,
-    and "prior_observations" (how many)."""
-    predictions = _held_out_predictions(texel, views, rho, d, s, fits, n_texels, bins, n_bins,
-                                        settings)
-    return _held_out_scores(rho, predictions, d, s, texel, scan_texture)
-
-
 @dataclasses.dataclass(frozen=True)
-class _HeldOut:
-    """:func:`held_out_misfits`' predictions, each (N, 3): by the texel's albedo from
+class HeldOut:
+    """:func:`held_out_predictions`' result, each (N, 3): by the texel's albedo from
     the other photos (``textured``) and by the region's one colour from them
     (``constant``); the shape's correction each used (``correction``); and (N,)
     ``held``, the observations predicted."""
@@ -610,8 +590,15 @@ class _HeldOut:
     held: np.ndarray
 
 
-def _held_out_predictions(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=0,
-                          settings: AlbedoSettings | None = None) -> _HeldOut:
+def held_out_predictions(texel, views, rho, d, s, fits, n_texels, bins=None, n_bins=0,
+                         settings: AlbedoSettings | None = None) -> HeldOut:
+    """Leave one photo out: each observation predicted from the other photos'
+    observations only, by its texel's albedo and by the region's one colour, both
+    with the fits' weights; with ``bins`` the shape's correction of each bin is
+    also refitted without the photo (a bin that photo alone sees keeps the prior,
+    1). Scored by :func:`held_out_misfits`. texel: (N,) local texel ids in [0,
+    n_texels); views: (N,) photo ids; rho, d, s: (N, 3); fits: per channel
+    ``_channel``'s result."""
     settings = settings or AlbedoSettings()
     n_views = int(views.max(initial=0)) + 1
 
@@ -651,13 +638,21 @@ def _held_out_predictions(texel, views, rho, d, s, fits, n_texels, bins=None, n_
         tex[:, c] = mi * (a_tex * d[:, c] + s[:, c])
         one[:, c] = mi * (a_one * d[:, c] + s[:, c])
         correction[:, c] = mi
-    return _HeldOut(textured=tex, constant=one, correction=correction, held=held)
+    return HeldOut(textured=tex, constant=one, correction=correction, held=held)
 
 
-def _held_out_scores(rho, predictions: _HeldOut, d=None, s=None, texel=None,
+def held_out_misfits(rho, predictions: HeldOut, d=None, s=None, texel=None,
                      scan_texture=None) -> dict:
-    """:func:`held_out_misfits`' result from its predictions; with ``scan_texture``
-    (and the observations' d, s and local texel), also the scan texture's."""
+    """The leave-one-photo-out test's misfits from :func:`held_out_predictions`:
+    {"textured", "constant": :func:`log_misfit` of the two predictions,
+    "observations": how many were predicted (those whose texel another photo also
+    sees)}. scan_texture: (n_texels, 3) the scan's texture at the local texels,
+    scaled (NaN where it has none), or None; given (with the observations' d, s
+    and local texel), each observation is also predicted by it (made from other
+    photos than the lit ones) and the result adds "prior" and
+    "textured_at_prior", the misfits of its prediction and of the photos'
+    texture over the observations it covers, and "prior_observations" (how
+    many)."""
     held, tex = predictions.held, predictions.textured
     out = {"textured": log_misfit(rho[held], tex[held]),
            "constant": log_misfit(rho[held], predictions.constant[held]),
