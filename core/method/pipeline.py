@@ -441,6 +441,7 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     ratios = refine.energy_ratios(start, observed)
     recorded.update(energy_per_photo=[float(r) for r in ratios], method=method,
                     trial=int(result.winner), energy_before=energy)
+    readable = False  # does a refit to every pixel reproduce each photo to the judge?
     if method == "energy" and judge > 0.0:  # the photos judge first: read pixel by pixel?
         every, verdict = _every_pixel_verdict(
             basis, start, observed, trusted, judge, cancelled,
@@ -448,6 +449,7 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
             max_albedo=refine.MAX_ALBEDO if inp.normalised else None)
         check(cancelled)
         recorded["every_pixel"] = verdict
+        readable = verdict["held_out"] is not None  # asked only where it does
         if verdict["kept"]:
             result.table = every.table
             result.refinement = {
@@ -477,6 +479,15 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
                 f"{', '.join(f'{r:.2f}' for r in ratios)}) by more than they miss it "
                 "together, and the refit does not reconcile them (ratios after "
                 f"{', '.join(f'{r:.2f}' for r in after)}), so the trial was kept as it is")
+        elif readable:
+            before, worse = (refine.relative_rmse(start, observed),
+                             refine.relative_rmse(refined, observed))
+            if not worse <= before:
+                skipped = (
+                    "the scan's normals let the photos be read pixel by pixel (a refit "
+                    f"to every pixel reproduces each to {judge:g}), and the energy refit "
+                    f"reproduces them worse than the chosen trial ({before:.3f} -> "
+                    f"{worse:.3f} relative RMSE), so the trial was kept as it is")
     if skipped:
         result.table = start.table  # nothing the photos agree on to give back
         result.refinement = {**recorded, "skipped": skipped, "table": "trial"}
