@@ -423,7 +423,11 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     on each photo, the trial's error on each photo (``trial_per_photo``), its
     ``largest_albedo`` where asked, whether it was ``kept`` and ``by`` which
     test ("its own errors" or "against the trial"); ``refinement["table"]`` says
-    which became the table: "trial", "energy" or "every_pixel". ``cancelled`` is
+    which became the table: "trial", "energy" or "every_pixel". Where that refit
+    reproduces each photo to ``photo_consistent`` but is not kept, the photos can
+    still be read pixel by pixel, so an energy refit that reproduces them worse
+    (``refine.relative_rmse``) than the chosen trial is not kept either: the trial
+    is the table and ``refinement["skipped"]`` says why. ``cancelled`` is
     polled between the refits (:class:`Cancelled`; the result is then left as it
     was)."""
     if result.refine_inputs is None:
