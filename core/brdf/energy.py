@@ -62,6 +62,42 @@ def directional_albedo(table: np.ndarray, theta_o_deg=None, n_theta: int = 120,
     return out
 
 
+def albedo_quadrature(theta_o_deg=CHECK_ANGLES_DEG, n_theta: int = 60,
+                      n_phi: int = 60) -> tuple[np.ndarray, np.ndarray]:
+    """The directional albedo as a linear map of a table's cells: ``(index, weights)``
+    with ``index`` (M,) int64 the flat cells (``merl.linear_index``) the quadrature
+    of :func:`directional_albedo` reads, each once, and ``weights`` (A, M) float64
+    (sr) such that ``weights @ table.reshape(3, -1)[:, index].T`` is
+    ``directional_albedo(table, theta_o_deg, n_theta, n_phi)`` ((A, 3)) for a finite
+    table. For a fit that must keep a table's albedo in bounds (its derivative in
+    the cells is ``weights``). theta_o_deg: (A,) view angles, degrees."""
+    theta_o = np.radians(np.atleast_1d(np.asarray(theta_o_deg, dtype=np.float64)))
+    t = (np.arange(n_theta) + 0.5) / n_theta
+    theta_h, dtheta = t * t * np.pi / 2.0, np.pi * t / n_theta
+    phi = (np.arange(n_phi) + 0.5) / n_phi * 2.0 * np.pi
+    th, ph = np.meshgrid(theta_h, phi, indexing="ij")
+    h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)],
+                 axis=-1).reshape(-1, 3)
+    d_omega = (np.sin(th) * dtheta[:, None] * (2.0 * np.pi / n_phi)).reshape(-1)
+    normal = np.array([0.0, 0.0, 1.0])
+    cells, angle_of, weight = [], [], []
+    for a, angle in enumerate(theta_o):  # one view angle at a time, as directional_albedo
+        v = np.array([np.sin(angle), 0.0, np.cos(angle)])
+        vh = h @ v
+        light = 2.0 * vh[:, None] * h - v
+        ok = (vh > 0.0) & (light[:, 2] > 0.0)
+        m = int(ok.sum())
+        index, above = merl.lookup(np.broadcast_to(normal, (m, 3)), light[ok],
+                                   np.broadcast_to(v, (m, 3)))
+        cells.append(index[above])
+        angle_of.append(np.full(int(above.sum()), a))
+        weight.append((light[ok, 2] * 4.0 * vh[ok] * d_omega[ok])[above])
+    index, inverse = np.unique(np.concatenate(cells), return_inverse=True)
+    weights = np.zeros((len(theta_o), len(index)))
+    np.add.at(weights, (np.concatenate(angle_of), inverse.ravel()), np.concatenate(weight))
+    return index, weights
+
+
 def largest_albedo(table: np.ndarray, theta_o_deg=CHECK_ANGLES_DEG) -> float:
     """The largest directional albedo of ``table`` over the view angles
     ``theta_o_deg`` (degrees) and the three channels: above 1 the table reflects

@@ -71,7 +71,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..brdf import merl, metrics, render
+from ..brdf import energy, merl, metrics, render
 from ..brdf.basis import EPS, Basis, _mapping_f64
 from ..progress import CancelCheck, check
 from .observations import Samples
@@ -127,6 +127,15 @@ TRIAL_SHARE = 0.5
 # held-out photos have judged it (the exact textured Spot's gold and copper
 # refits, sphere 0.04 and 0.13, reach 1.2 to 3.7)
 MAX_ALBEDO = 1.05
+# photo_consistent's max_albedo term (off in the pipeline: measured on scratch runs
+# only, docs/results.md): the softness of the bound on the directional albedo
+# (dimensionless, per view angle of energy.CHECK_ANGLES_DEG and channel) and the
+# quadrature's nodes per axis (energy.albedo_quadrature). On exact photos of the
+# analytic silver a softness of 0.01 left the refit at 1.41 (the photos' term,
+# weighed by its own tiny misfit, outweighs it), 0.002 at 1.04; 120 nodes instead of
+# 60 changed the albedo by less than 0.01
+ALBEDO_SIGMA = 0.002
+ALBEDO_NODES = 60
 # Gauss-Newton steps of each held-out refit (held_out_rmse): what it measures, the
 # held-out photos' errors, settles within 5 (the exact bunny's gold, Lambert and
 # two-layer gold: equal to 0.002 at 3, 5, 10 and 20 steps) at a quarter of 20's time
@@ -177,6 +186,7 @@ def photo_consistent(
     iterations: int = 20,
     normal_sigma: float = 0.0,
     normal_draws: int = 8,
+    max_albedo: float | None = None,
 ) -> Reconstruction:
     """Refit ``start``'s coefficients to the photos (module docstring).
 
@@ -188,7 +198,11 @@ def photo_consistent(
     radiance term predicts each pixel as the mean over ``normal_draws`` normals
     drawn about the scan's (a fixed seed), so a lobe blurred by wrong normals is
     not fitted as a wider lobe (an experiment, off by default:
-    ``bench/refit_bench.py``, docs/results.md). Returns a new Reconstruction with
+    ``bench/refit_bench.py``, docs/results.md). max_albedo: where given, a soft
+    bound (``ALBEDO_SIGMA``) on the refit's directional albedo at the view angles
+    of ``energy.CHECK_ANGLES_DEG`` (``energy.albedo_quadrature``): the photos see
+    part of the table, and without it the refit may fill the rest with more light
+    than the surface receives (an experiment, off by default). Returns a new Reconstruction with
     all k coefficients per channel; its residuals are at the trusted samples'
     cells. Deterministic: no random choice beyond the seeded draws.
     """
@@ -223,6 +237,24 @@ def photo_consistent(
     trows, inside, Qt, mean_t, x_t = _trusted_term(basis, trusted)
     tau2 = 1.0 / basis.info["n_columns"]
     tiny = _TINY
+    if max_albedo is not None:  # the directional albedo's cells and weights
+        a_index, a_weights = energy.albedo_quadrature(n_theta=ALBEDO_NODES, n_phi=ALBEDO_NODES)
+        a_rows = basis.source_rows(a_index)
+        Qa, mean_a = basis.Q[a_rows].astype(np.float64), basis.mean[a_rows].astype(np.float64)
+        weight_a, m_eps_a = weight[a_rows], m_eps[a_rows]
+
+    def albedo_term(c, jacobian=True):
+        """Residuals (A,) of the directional albedo above ``max_albedo`` (0 where
+        within), in ALBEDO_SIGMA, and their Jacobian (A, k) (None if not asked)."""
+        if max_albedo is None:
+            return np.zeros(0), (np.zeros((0, k)) if jacobian else None)
+        e = m_eps_a * np.exp(np.clip(Qa @ c + mean_a, lo - _MARGIN, hi + _MARGIN))
+        over = a_weights @ (np.maximum(e - EPS, 0.0) / weight_a) - max_albedo
+        r = np.maximum(over, 0.0) / ALBEDO_SIGMA
+        if not jacobian:
+            return r, None
+        J = ((a_weights * (e / weight_a)) @ Qa) * ((over > 0.0) / ALBEDO_SIGMA)[:, None]
+        return r, J
 
     def predict(c, ch, jacobian=True):
         """Radiance (N,) of channel ``ch`` and its Jacobian (N, k) in c (None if not
@@ -241,7 +273,8 @@ def photo_consistent(
         terms' mean squared residuals), up to a constant: comparable between fits."""
         r_l, r_x = predict(c, ch, False)[0] - obs, Qt @ c + mean_t - xt
         w_x = _huber(r_x)
-        value = len(r_l) * np.log(max(float(np.mean(r_l**2)), tiny)) + c @ c / tau2
+        value = (len(r_l) * np.log(max(float(np.mean(r_l**2)), tiny)) + c @ c / tau2
+                 + float(np.sum(albedo_term(c, False)[0] ** 2)))
         if len(r_x):
             value += np.sum(w_x) * np.log(max(float(np.sum(w_x * r_x**2) / np.sum(w_x)), 1e-8))
         return float(value)
@@ -261,12 +294,14 @@ def photo_consistent(
                 H = H + (Qt.T * w_x) @ Qt / s2_x
                 grad = grad + Qt.T @ (w_x * r_x) / s2_x
             H, grad = H + np.eye(k) / tau2, grad + c / tau2
+            r_a, J_a = albedo_term(c)
+            H, grad = H + J_a.T @ J_a, grad + J_a.T @ r_a
 
             def objective(cn, pn, s2_l=s2_l, s2_x=s2_x, w_x=w_x, obs=obs, xt=xt):
                 value = np.sum((pn - obs) ** 2) / s2_l
                 if w_x is not None:
                     value = value + np.sum(w_x * (Qt @ cn + mean_t - xt) ** 2) / s2_x
-                return value + cn @ cn / tau2
+                return value + cn @ cn / tau2 + np.sum(albedo_term(cn, False)[0] ** 2)
 
             c, moved, gain = _damped_step(
                 c, H, grad, lambda cn, ch=ch, objective=objective:

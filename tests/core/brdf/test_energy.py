@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from brdf_reconstruct.core.brdf import database, energy
+from brdf_reconstruct.core.brdf import database, energy, merl
 
 ALBEDO = np.array([0.2, 0.5, 0.8])
 
@@ -69,3 +69,15 @@ def test_a_mirror_like_lobe_is_integrated_not_missed():
     assert np.nanmax(table) > 1e4 / np.pi
     got = energy.directional_albedo(table, energy.CHECK_ANGLES_DEG)
     np.testing.assert_allclose(got, 1.0, atol=0.01)
+
+
+def test_the_albedo_quadrature_is_the_directional_albedo():
+    """energy.albedo_quadrature as a linear map of the cells gives
+    energy.directional_albedo of the same quadrature (reference value)."""
+    spec = {s["name"]: s for s in database.heldout_specs()}["heldout_glossy_plastic"]
+    table = merl.fill_unmeasured(database.make_table(spec))
+    index, weights = energy.albedo_quadrature(n_theta=40, n_phi=40)
+    got = weights @ table.reshape(3, -1)[:, index].T
+    want = energy.directional_albedo(table, energy.CHECK_ANGLES_DEG, 40, 40)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+    assert len(np.unique(index)) == len(index)
