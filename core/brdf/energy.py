@@ -21,6 +21,19 @@ from . import merl
 CHECK_ANGLES_DEG = np.arange(0.0, 81.0, 10.0)
 
 
+def _half_vectors(n_theta: int, n_phi: int) -> tuple[np.ndarray, np.ndarray]:
+    """The quadrature's half vectors (M, 3) about the normal +z, their polar angle
+    spaced as the table's theta_h bins (``t^2 pi / 2``), and their solid angles
+    (M,) sr; M = n_theta n_phi."""
+    t = (np.arange(n_theta) + 0.5) / n_theta
+    theta_h, dtheta = t * t * np.pi / 2.0, np.pi * t / n_theta
+    phi = (np.arange(n_phi) + 0.5) / n_phi * 2.0 * np.pi
+    th, ph = np.meshgrid(theta_h, phi, indexing="ij")
+    h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)],
+                 axis=-1).reshape(-1, 3)
+    return h, (np.sin(th) * dtheta[:, None] * (2.0 * np.pi / n_phi)).reshape(-1)
+
+
 def directional_albedo(table: np.ndarray, theta_o_deg=None, n_theta: int = 120,
                        n_phi: int = 120) -> np.ndarray:
     """(A, 3) the directional albedo of ``table`` ((3, 90, 90, 180), 1/sr, RGB) for a
@@ -36,13 +49,7 @@ def directional_albedo(table: np.ndarray, theta_o_deg=None, n_theta: int = 120,
     (:func:`merl.fill_unmeasured`), infinite values count as 0."""
     theta_o = np.radians(np.arange(90) + 0.5 if theta_o_deg is None
                          else np.atleast_1d(np.asarray(theta_o_deg, dtype=np.float64)))
-    t = (np.arange(n_theta) + 0.5) / n_theta
-    theta_h, dtheta = t * t * np.pi / 2.0, np.pi * t / n_theta
-    phi = (np.arange(n_phi) + 0.5) / n_phi * 2.0 * np.pi
-    th, ph = np.meshgrid(theta_h, phi, indexing="ij")
-    h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)],
-                 axis=-1).reshape(-1, 3)
-    d_omega = (np.sin(th) * dtheta[:, None] * (2.0 * np.pi / n_phi)).reshape(-1)
+    h, d_omega = _half_vectors(n_theta, n_phi)
     table = np.asarray(table, dtype=np.float64)
     if np.isinf(table).any():  # on a copy: the caller's table is left as it is
         table = np.where(np.isinf(table), 0.0, table)
@@ -72,13 +79,7 @@ def albedo_quadrature(theta_o_deg=CHECK_ANGLES_DEG, n_theta: int = 60,
     table. For a fit that must keep a table's albedo in bounds (its derivative in
     the cells is ``weights``). theta_o_deg: (A,) view angles, degrees."""
     theta_o = np.radians(np.atleast_1d(np.asarray(theta_o_deg, dtype=np.float64)))
-    t = (np.arange(n_theta) + 0.5) / n_theta
-    theta_h, dtheta = t * t * np.pi / 2.0, np.pi * t / n_theta
-    phi = (np.arange(n_phi) + 0.5) / n_phi * 2.0 * np.pi
-    th, ph = np.meshgrid(theta_h, phi, indexing="ij")
-    h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)],
-                 axis=-1).reshape(-1, 3)
-    d_omega = (np.sin(th) * dtheta[:, None] * (2.0 * np.pi / n_phi)).reshape(-1)
+    h, d_omega = _half_vectors(n_theta, n_phi)
     normal = np.array([0.0, 0.0, 1.0])
     cells, angle_of, weight = [], [], []
     for a, angle in enumerate(theta_o):  # one view angle at a time, as directional_albedo

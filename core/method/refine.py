@@ -210,6 +210,8 @@ def photo_consistent(
         raise ValueError(f"normal_sigma must be a finite angle >= 0 radians, got {normal_sigma}")
     if normal_draws < 1:
         raise ValueError(f"normal_draws must be at least 1, got {normal_draws}")
+    if max_albedo is not None and not (np.isfinite(max_albedo) and max_albedo > 0.0):
+        raise ValueError(f"max_albedo must be a finite number > 0, got {max_albedo}")
     coefs = _start_coefficients(basis, start, samples, iterations)
     k = basis.n_components
     weight, m_eps = _mapping_f64(basis)

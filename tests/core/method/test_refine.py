@@ -295,6 +295,10 @@ def test_the_every_pixel_refit_bounded_in_albedo_reflects_no_more_than_it_receiv
     assert (metrics.sphere_error(bounded.table, truth)
             < metrics.sphere_error(free.table, truth))
     assert np.all(np.isfinite(bounded.table)) and np.all(bounded.table >= 0)
+    for bad in (0.0, -1.0, np.nan, np.inf):
+        with pytest.raises(ValueError, match="max_albedo must be a finite number > 0"):
+            refine.photo_consistent(inp.basis, start, inp.observed, inp.trusted,
+                                    max_albedo=bad)
 
 
 def test_an_energy_refit_that_reads_the_photos_worse_than_the_trial_is_not_kept(
@@ -302,8 +306,8 @@ def test_an_energy_refit_that_reads_the_photos_worse_than_the_trial_is_not_kept(
     """Exact normals let the photos be read pixel by pixel: the silver's one photo
     (light 2) is reproduced by the every-pixel refit to 1e-4, but one photo cannot
     be held out, so that refit is not kept and the energy refit is tried. It
-    reproduces the photo worse than the chosen trial (measured: relative RMSE 0.103
-    against 0.115), so the trial is the table and the report says why. (Here the
+    reproduces the photo worse than the chosen trial (measured: relative RMSE 0.115
+    against 0.103), so the trial is the table and the report says why. (Here the
     sphere prefers the refit a little, 0.203 against 0.226; on the textured numpy
     scene's exact scan the same rule took the silver from 1.07 to 0.16 and the
     polished aluminium from 1.08 to 0.33: docs/results.md.) On the blunted scan no
