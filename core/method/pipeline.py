@@ -475,6 +475,8 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     if not skipped:
         fit = refine.energy_consistent if method == "energy" else refine.photo_consistent
         refined = fit(basis, start, observed, trusted, **inp.options)
+        before, after_rmse = (refine.relative_rmse(start, observed),
+                              refine.relative_rmse(refined, observed))
         after = refine.energy_ratios(refined, observed)
         recorded["energy_per_photo_after"] = [float(r) for r in after]
         if method == "energy" and refine.photos_disagree_unreconciled(ratios, after):
@@ -483,23 +485,19 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
                 f"{', '.join(f'{r:.2f}' for r in ratios)}) by more than they miss it "
                 "together, and the refit does not reconcile them (ratios after "
                 f"{', '.join(f'{r:.2f}' for r in after)}), so the trial was kept as it is")
-        elif readable:
-            before, worse = (refine.relative_rmse(start, observed),
-                             refine.relative_rmse(refined, observed))
-            if not worse <= before:
-                skipped = (
-                    "the scan's normals let the photos be read pixel by pixel (a refit "
-                    f"to every pixel reproduces each to {judge:g}), and the energy refit "
-                    f"reproduces them worse than the chosen trial ({before:.3f} -> "
-                    f"{worse:.3f} relative RMSE), so the trial was kept as it is")
+        elif readable and not after_rmse <= before:
+            skipped = (
+                "the scan's normals let the photos be read pixel by pixel (a refit "
+                f"to every pixel reproduces each to {judge:g}), and the energy refit "
+                f"reproduces them worse than the chosen trial ({before:.3f} -> "
+                f"{after_rmse:.3f} relative RMSE), so the trial was kept as it is")
     if skipped:
         result.table = start.table  # nothing the photos agree on to give back
         result.refinement = {**recorded, "skipped": skipped, "table": "trial"}
     else:
         result.table = refined.table
         result.refinement = {
-            **recorded, "before": refine.relative_rmse(start, observed),
-            "after": refine.relative_rmse(refined, observed),
+            **recorded, "before": before, "after": after_rmse,
             "energy_after": refine.energy_ratio(refined, observed),
             "table": "energy" if method == "energy" else "every_pixel"}
     result.timings["refinement"] = time.perf_counter() - t0
