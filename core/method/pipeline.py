@@ -453,7 +453,7 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
             max_albedo=refine.MAX_ALBEDO if inp.normalised else None)
         check(cancelled)
         recorded["every_pixel"] = verdict
-        readable = verdict["held_out"] is not None  # asked only where it does
+        readable = all(r is not None and r <= judge for r in verdict["per_photo"])
         if verdict["kept"]:
             result.table = every.table
             result.refinement = {
