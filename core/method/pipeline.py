@@ -387,7 +387,10 @@ def run_region(
     result.trials = [dict(rec.summary(), samples_used=int(len(used))) for rec, used in trials]
     if method != "none":
         # Eq. (2)'s bound on the peak where Eq. (2) holds (not with the peak clipped)
-        options = {"peak_bound": rel.use_brightest} if method == "energy" else {}
+        # and, refitted to every pixel, a surface's limit on its albedo (not on
+        # photos divided by a texture, whose table's level is relative to it)
+        options = ({"peak_bound": rel.use_brightest} if method == "energy"
+                   else {} if normalised else {"max_albedo": refine.ALBEDO_BOUND})
         result.refine_inputs = RefineInputs(method, basis, observed, cand, options,
                                             settings.photo_consistent, normalised)
         check(cancelled)
@@ -407,7 +410,9 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     (``refine_inputs`` None).
 
     The energy refinement is judged by the photos: the chosen trial is also
-    refitted to every observed pixel (``refine.photo_consistent``), and where that
+    refitted to every observed pixel (``refine.photo_consistent``; unless the
+    photos were ``normalised``, it and its held-out refits reflect no more than
+    ``refine.ALBEDO_BOUND`` of the light they receive), and where that
     refit reproduces each photo to a relative RMSE of ``photo_consistent`` or less
     (default: the run's ``PipelineSettings.photo_consistent``; 0: never) and,
     refitted without each photo in turn, predicts the photo left out
@@ -450,7 +455,8 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
         every, verdict = _every_pixel_verdict(
             basis, start, observed, trusted, judge, cancelled,
             trial_share=refine.TRIAL_SHARE,
-            max_albedo=refine.MAX_ALBEDO if inp.normalised else None)
+            max_albedo=refine.MAX_ALBEDO if inp.normalised else None,
+            bound=None if inp.normalised else refine.ALBEDO_BOUND)
         check(cancelled)
         recorded["every_pixel"] = verdict
         readable = all(r is not None and r <= judge for r in verdict["per_photo"])
@@ -504,9 +510,11 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
 
 
 def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelled=None,
-                         trial_share: float = 0.0, max_albedo: float | None = None):
-    """The chosen trial refitted to every observed pixel (``refine.photo_consistent``)
-    and whether the photos keep it. It must reproduce each photo to a relative RMSE
+                         trial_share: float = 0.0, max_albedo: float | None = None,
+                         bound: float | None = None):
+    """The chosen trial refitted to every observed pixel (``refine.photo_consistent``;
+    where ``bound`` is given, it and the held-out refits reflect no more than that
+    of the light they receive, its ``max_albedo``) and whether the photos keep it. It must reproduce each photo to a relative RMSE
     of ``judge`` or less; then (asked only then) it is refitted without each photo
     in turn, and kept if, in the median over photos, either
     - the refits predict the photo left out (``refine.held_out_rmse``) and move on
@@ -519,15 +527,17 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
       ``core.brdf.energy.largest_albedo``).
     Returns the refit and a JSON-ready record (``relative_rmse``, ``per_photo``,
     ``held_out``, ``dependence``, ``trial_per_photo``, ``kept``, ``by``,
-    ``largest_albedo`` (None where not asked), ``threshold``, ``trial_share``;
+    ``largest_albedo`` (None where not asked), ``threshold``, ``trial_share``,
+    ``albedo_bound`` (``bound``);
     NaN, a black photo's or a single photo's, as None, and never kept)."""
-    every = refine.photo_consistent(basis, start, observed, trusted)
+    every = refine.photo_consistent(basis, start, observed, trusted, max_albedo=bound)
     per_photo = refine.relative_rmse_per_photo(every, observed)
     kept = bool(np.all(per_photo <= judge))
     held_out = dependence = trial = albedo = None
     by = None
     if kept:
-        fits = refine.held_out_refits(basis, start, observed, trusted, cancelled=cancelled)
+        fits = refine.held_out_refits(basis, start, observed, trusted, cancelled=cancelled,
+                                      max_albedo=bound)
         held_out = refine.held_out_rmse(fits, observed)
         dependence = refine.photo_dependence(every, fits)
         trial = refine.relative_rmse_per_photo(start, observed)
@@ -549,7 +559,7 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
         "dependence": None if dependence is None else [_finite_or_none(r) for r in dependence],
         "trial_per_photo": None if trial is None else [_finite_or_none(r) for r in trial],
         "largest_albedo": None if albedo is None else _finite_or_none(albedo),
-        "threshold": judge, "trial_share": trial_share}
+        "threshold": judge, "trial_share": trial_share, "albedo_bound": bound}
 
 
 def _finite_or_none(value) -> float | None:

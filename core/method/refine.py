@@ -127,8 +127,16 @@ TRIAL_SHARE = 0.5
 # held-out photos have judged it (the exact textured Spot's gold and copper
 # refits, sphere 0.04 and 0.13, reach 1.2 to 3.7)
 MAX_ALBEDO = 1.05
-# photo_consistent's max_albedo term (off in the pipeline: measured on scratch runs
-# only, docs/results.md): the softness of the bound on the directional albedo
+# The every-pixel refits of untextured photos (pipeline.refine_chosen: the judge's
+# refit and its held-out refits) are bounded to reflect no more than this of the
+# light they receive (photo_consistent's max_albedo): a surface's physical limit.
+# The photos see part of the table, and a free refit may fill the rest with more
+# light than it receives: on the exact scans the free refits of glossy plastic,
+# the polished aluminium and the silver reach 3 to 190 (docs/results.md). Not on
+# photos divided by a texture: there the table carries the light relative to that
+# texture, and its own level is not a surface's
+ALBEDO_BOUND = 1.0
+# photo_consistent's max_albedo term: the softness of the bound on the directional albedo
 # (dimensionless, per view angle of energy.CHECK_ANGLES_DEG and channel) and the
 # quadrature's nodes per axis (energy.albedo_quadrature). On exact photos of the
 # analytic silver a softness of 0.01 left the refit at 1.41 (the photos' term,
@@ -202,7 +210,8 @@ def photo_consistent(
     bound (``ALBEDO_SIGMA``) on the refit's directional albedo at the view angles
     of ``energy.CHECK_ANGLES_DEG`` (``energy.albedo_quadrature``): the photos see
     part of the table, and without it the refit may fill the rest with more light
-    than the surface receives (an experiment, off by default). Returns a new Reconstruction with
+    than the surface receives (the pipeline bounds untextured photos' refits at
+    ``ALBEDO_BOUND``). Returns a new Reconstruction with
     all k coefficients per channel; its residuals are at the trusted samples'
     cells. Deterministic: no random choice beyond the seeded draws.
     """
@@ -719,12 +728,14 @@ def _lookups(basis: Basis, weight, m_eps, cells, n, samples: Samples):
 
 def held_out_refits(basis: Basis, start: Reconstruction, samples: Samples,
                     trusted: Samples, iterations: int = HELD_OUT_ITERATIONS,
-                    cancelled: CancelCheck | None = None) -> list:
+                    cancelled: CancelCheck | None = None,
+                    max_albedo: float | None = None) -> list:
     """Per photo p (in the order of ``np.unique(samples.view)``) the refit of
     ``start`` (:func:`photo_consistent`) to the other photos' samples and trusted
     samples, or None (one photo, or no trusted sample of another). iterations:
     each refit's steps (:data:`HELD_OUT_ITERATIONS`). cancelled: polled before each
-    refit (:class:`core.progress.Cancelled` when it returns True)."""
+    refit (:class:`core.progress.Cancelled` when it returns True). max_albedo: each
+    refit's bound on its directional albedo (:func:`photo_consistent`)."""
     view = np.asarray(samples.view)
     photos = np.unique(view)
     fits = [None] * len(photos)
@@ -736,7 +747,8 @@ def held_out_refits(basis: Basis, start: Reconstruction, samples: Samples,
         others = np.flatnonzero(trusted_view != p)
         if len(others):
             fits[i] = photo_consistent(basis, start, samples.subset(np.flatnonzero(view != p)),
-                                       trusted.subset(others), iterations=iterations)
+                                       trusted.subset(others), iterations=iterations,
+                                       max_albedo=max_albedo)
     return fits
 
 
