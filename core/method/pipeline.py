@@ -514,9 +514,10 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
                          bound: float | None = None):
     """The chosen trial refitted to every observed pixel (``refine.photo_consistent``;
     where ``bound`` is given, it and the held-out refits reflect no more than that
-    of the light they receive, its ``max_albedo``) and whether the photos keep it. It must reproduce each photo to a relative RMSE
-    of ``judge`` or less; then (asked only then) it is refitted without each photo
-    in turn, and kept if, in the median over photos, either
+    of the light they receive, its ``max_albedo``) and whether the photos keep it.
+    It must reproduce each photo to a relative RMSE of ``judge`` or less; then
+    (asked only then) it is refitted without each photo in turn, and kept if, in
+    the median over photos, either
     - the refits predict the photo left out (``refine.held_out_rmse``) and move on
       the rendered sphere (``refine.photo_dependence``) by ``judge`` or less ("its
       own errors"), or
