@@ -13,13 +13,16 @@ Balanced presets' fast-KL settings, which keep the highlights' energy
 (``refine="energy"``); "trials", Balanced's chosen trial before that refit (Balanced
 before 2026-12-04); the paper's 6 samples x 16 trials with the fast KL; and
 "refined", Balanced's chosen trial refitted to every pixel
-(``refine.photo_consistent``); "energy", Balanced's chosen trial with the energy
-refit alone (``photo_consistent=0``: Balanced before the every-pixel refit was
-judged by the photos, 2026-12-04 evening); the Cycles selection of the Accurate and
-Paper presets is not run here), on the degraded scan and on the exact scan (the
-truth's own G-buffers: the floor; Balanced, trials, refined and energy only).
-Balanced, trials, refined and energy come from one run, each timed as its own. The
-basis is the shipped default that never saw the material (``common.default_basis_without``).
+(``refine.photo_consistent``, free: without the bound on its albedo,
+``refine.ALBEDO_BOUND``, that the pipeline's own every-pixel refits of untextured
+photos carry since 2026-12-06, ``refine_to_photos`` included); "energy", Balanced's
+chosen trial with the energy refit alone (``photo_consistent=0``: Balanced before
+the every-pixel refit was judged by the photos, 2026-12-04 evening); the Cycles
+selection of the Accurate and Paper presets is not run here), on the degraded scan
+and on the exact scan (the truth's own G-buffers: the floor; Balanced, trials,
+refined and energy only). Balanced, trials, refined and energy come from one run,
+each timed as its own. The basis is the shipped default that never saw the material
+(``common.default_basis_without``).
 
 Per run: ``sphere`` (``metrics.sphere_error``, three evaluation lights);
 ``self_consistency``, the chosen table re-rendered on the scan's G-buffers under
@@ -66,7 +69,8 @@ MODES = {
 }
 # "trials" and "refined" come from Balanced's run: "trials" scores its chosen trial
 # as it is (Balanced before 2026-12-04, without keeping the highlights' energy),
-# "refined" the same trial refitted to every pixel (refine.photo_consistent),
+# "refined" the same trial refitted to every pixel (refine.photo_consistent, free:
+# no albedo bound, so beside exact Balanced it measures the bound's share),
 # "energy" the same trial with the energy refit alone, never judged against the
 # every-pixel refit (photo_consistent=0: Balanced before 2026-12-04 evening)
 PAIRED = {"balanced": ("trials", "refined", "energy")}
