@@ -315,10 +315,10 @@ class BRDFSettings(PropertyGroup):
     refine_to_photos: BoolProperty(
         name="Refine to Photos", default=False,
         description="After the selection, refit the chosen table to every observed pixel "
-        "(highlights included). Needs accurate normals: with exact ones it cut the "
-        "median sphere error from 0.23 to 0.07; on a blunted scan it was even (0.39 "
-        "against 0.40), and with noisy normals it can overshoot a mirror's peak. Off by "
-        "default")
+        "(highlights included), reflecting no more light than it receives. Needs "
+        "accurate normals: with exact ones it cut the median sphere error from 0.23 to "
+        "about 0.07; on a blunted scan it was even (0.39 against 0.40), and with noisy "
+        "normals it can overshoot a mirror's peak. Off by default")
 
     # texture (issue 16)
     texture: BoolProperty(
