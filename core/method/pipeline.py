@@ -386,11 +386,9 @@ def run_region(
     result.candidates = CandidateTables([rec for rec, _ in trials])
     result.trials = [dict(rec.summary(), samples_used=int(len(used))) for rec, used in trials]
     if method != "none":
-        # Eq. (2)'s bound on the peak where Eq. (2) holds (not with the peak clipped)
-        # and, refitted to every pixel, a surface's limit on its albedo (not on
-        # photos divided by a texture, whose table's level is relative to it)
-        options = ({"peak_bound": rel.use_brightest} if method == "energy"
-                   else {} if normalised else {"max_albedo": refine.ALBEDO_BOUND})
+        # Eq. (2)'s bound on the peak where Eq. (2) holds (not with the peak clipped);
+        # refitted to every pixel, the albedo's bound is refine_chosen's
+        options = {"peak_bound": rel.use_brightest} if method == "energy" else {}
         result.refine_inputs = RefineInputs(method, basis, observed, cand, options,
                                             settings.photo_consistent, normalised)
         check(cancelled)
@@ -412,7 +410,12 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     The energy refinement is judged by the photos: the chosen trial is also
     refitted to every observed pixel (``refine.photo_consistent``; unless the
     photos were ``normalised``, it and its held-out refits reflect no more than
-    ``refine.ALBEDO_BOUND`` of the light they receive), and where that
+    ``refine.ALBEDO_BOUND`` of the light they receive, unless that bound keeps it
+    from a photo the free refit meets: then the irradiance given is too low for
+    the photos, the refit is free and ``every_pixel["bound_refused"]`` says so;
+    the "photo" refinement is bounded the same way, with ``photo_consistent`` or
+    ``refine.PHOTO_CONSISTENT`` as the photos' test, ``refinement["albedo_bound"]``
+    the bound it kept), and where that
     refit reproduces each photo to a relative RMSE of ``photo_consistent`` or less
     (default: the run's ``PipelineSettings.photo_consistent``; 0: never) and,
     refitted without each photo in turn, predicts the photo left out
@@ -450,16 +453,28 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     ratios = refine.energy_ratios(start, observed)
     recorded.update(energy_per_photo=[float(r) for r in ratios], method=method,
                     trial=int(result.winner), energy_before=energy)
+    # refitted to every pixel, a table reflects no more than a surface's limit of the
+    # light it receives (not on photos divided by a texture, whose table's level is
+    # relative to it), unless the photos say it reflects more (_bound_refused)
+    bound = None if inp.normalised else refine.ALBEDO_BOUND
     readable = False  # does a refit to every pixel reproduce each photo to the judge?
     if method == "energy" and judge > 0.0:  # the photos judge first: read pixel by pixel?
         every, verdict = _every_pixel_verdict(
             basis, start, observed, trusted, judge, cancelled,
             trial_share=refine.TRIAL_SHARE,
-            max_albedo=refine.MAX_ALBEDO if inp.normalised else None,
-            bound=None if inp.normalised else refine.ALBEDO_BOUND)
+            max_albedo=refine.MAX_ALBEDO if inp.normalised else None, bound=bound)
         check(cancelled)
+        if _presses_bound(every, verdict["per_photo"], bound, judge):
+            free, free_verdict = _every_pixel_verdict(
+                basis, start, observed, trusted, judge, cancelled,
+                trial_share=refine.TRIAL_SHARE, bound=None)
+            check(cancelled)
+            if _reads(free_verdict["per_photo"], judge):
+                free_verdict["bound_refused"] = _bound_refused(
+                    verdict["per_photo"], free_verdict["per_photo"], bound)
+                every, verdict = free, free_verdict
         recorded["every_pixel"] = verdict
-        readable = all(r is not None and r <= judge for r in verdict["per_photo"])
+        readable = _reads(verdict["per_photo"], judge)
         if verdict["kept"]:
             result.table = every.table
             result.refinement = {
@@ -479,8 +494,23 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
                    f"{100 * refine.ENERGY_TOLERANCE:g} % of theirs "
                    f"({energy:.3f} of it), so it was kept as it is")
     if not skipped:
-        fit = refine.energy_consistent if method == "energy" else refine.photo_consistent
-        refined = fit(basis, start, observed, trusted, **inp.options)
+        if method == "energy":
+            refined = refine.energy_consistent(basis, start, observed, trusted, **inp.options)
+        else:
+            refined = refine.photo_consistent(basis, start, observed, trusted,
+                                              max_albedo=bound, **inp.options)
+            at = judge if judge > 0.0 else refine.PHOTO_CONSISTENT
+            per_photo = [_finite_or_none(r) for r in
+                         refine.relative_rmse_per_photo(refined, observed)]
+            if _presses_bound(refined, per_photo, bound, at):
+                free = refine.photo_consistent(basis, start, observed, trusted, **inp.options)
+                free_per_photo = [_finite_or_none(r) for r in
+                                  refine.relative_rmse_per_photo(free, observed)]
+                if _reads(free_per_photo, at):
+                    recorded["bound_refused"] = _bound_refused(per_photo, free_per_photo,
+                                                               bound)
+                    refined, bound = free, None
+            recorded["albedo_bound"] = bound
         before, after_rmse = (refine.relative_rmse(start, observed),
                               refine.relative_rmse(refined, observed))
         after = refine.energy_ratios(refined, observed)
@@ -561,6 +591,33 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
         "trial_per_photo": None if trial is None else [_finite_or_none(r) for r in trial],
         "largest_albedo": None if albedo is None else _finite_or_none(albedo),
         "threshold": judge, "trial_share": trial_share, "albedo_bound": bound}
+
+
+def _reads(per_photo, judge: float) -> bool:
+    """Whether a refit reproduces each photo (``per_photo``: relative RMSE, None
+    where not finite) to ``judge`` or less."""
+    return all(r is not None and r <= judge for r in per_photo)
+
+
+def _presses_bound(refit, per_photo, bound: float | None, judge: float) -> bool:
+    """Whether a refit bounded in albedo at ``bound`` misses a photo by more than
+    ``judge`` while it presses against the bound (``refine.BOUND_PRESSED``): the
+    bound may be what keeps it from the photos."""
+    return (bound is not None and not _reads(per_photo, judge)
+            and refine.reconstruction_albedo(refit) >= refine.BOUND_PRESSED * bound)
+
+
+def _bound_refused(bounded, free, bound: float) -> str:
+    """The report's sentence where the photos refuse the albedo bound."""
+    def listed(per_photo):
+        return ", ".join("-" if r is None else f"{r:.2f}" for r in per_photo)
+
+    return (f"a table reflecting no more than {bound:g} of the light it receives misses "
+            f"the photos (relative RMSE per photo {listed(bounded)}) where one without "
+            f"that bound meets them ({listed(free)}): the photos say the surface "
+            "reflects more light than the irradiance given lets it, so that irradiance "
+            "is likely too low (check it, or give a gray card), and the refit was not "
+            "bounded")
 
 
 def _finite_or_none(value) -> float | None:

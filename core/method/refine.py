@@ -141,6 +141,16 @@ MAX_ALBEDO = 1.05
 # divided by a texture: there the table carries the light relative to that
 # texture, and its own level is not a surface's
 ALBEDO_BOUND = 1.0
+# ... unless the photos themselves say the surface reflects more than that: where the
+# bounded refit presses against the bound (its largest albedo at least this share of
+# it, reconstruction_albedo) and misses a photo by more than the judge, while the
+# free refit meets every photo, the irradiance the user gave is not the light the
+# surface received (a default of 1 W/m^2 with a camera's own units: the table's level
+# is then the photos' scale, not a surface's), and the refit is left free
+# (pipeline.refine_chosen records why). With the given irradiance 4 times too low,
+# exact photos of the gold lost the every-pixel refit to the bound (sphere 0.057 ->
+# 0.140); the captures of the benches, whose irradiance is right, never ask
+BOUND_PRESSED = 0.99
 # photo_consistent's max_albedo term: the softness of the bound on the directional albedo
 # (dimensionless, per view angle of energy.CHECK_ANGLES_DEG and channel) and the
 # quadrature's nodes per axis (energy.albedo_quadrature). On exact photos of the
@@ -729,6 +739,16 @@ def _lookups(basis: Basis, weight, m_eps, cells, n, samples: Samples):
     return (basis.Q[rows].astype(np.float64), basis.mean[rows].astype(np.float64),
             weight[rows], m_eps[rows],
             np.asarray(samples.irradiance, dtype=np.float64) * cos_l[:, None])
+
+
+def reconstruction_albedo(rec: Reconstruction) -> float:
+    """The largest directional albedo of ``rec`` over the view angles of
+    ``energy.CHECK_ANGLES_DEG`` and the three channels (dimensionless: reflected
+    over received light), read at the cells of ``energy.albedo_quadrature``
+    (``ALBEDO_NODES`` per axis) only: ``energy.largest_albedo`` of its table
+    without expanding it."""
+    index, weights = energy.albedo_quadrature(n_theta=ALBEDO_NODES, n_phi=ALBEDO_NODES)
+    return float(np.max(weights @ rec.rho_at(index)))
 
 
 def held_out_refits(basis: Basis, start: Reconstruction, samples: Samples,

@@ -399,7 +399,7 @@ def test_the_judges_refit_of_the_users_photos_reflects_no_more_than_it_receives(
     region = pipeline.run(default_basis, inputs, SETTINGS).regions[0]
     pipeline.refine_chosen(region, photo_consistent=judge)
     judged = region.refinement["every_pixel"]
-    assert judged["albedo_bound"] == refine.ALBEDO_BOUND
+    assert judged["albedo_bound"] == refine.ALBEDO_BOUND and "bound_refused" not in judged
     assert judged["kept"] and judged["by"] == "its own errors"
     assert region.refinement["table"] == "every_pixel"
     assert energy.largest_albedo(region.table) <= 1.05
@@ -412,6 +412,40 @@ def test_the_judges_refit_of_the_users_photos_reflects_no_more_than_it_receives(
     assert energy.largest_albedo(free.table) > 1.5
     assert np.median(free.refinement["every_pixel"]["dependence"]) > judge
     assert bounded < 0.8 * metrics.sphere_error(free.table, truth)
+
+
+def test_photos_brighter_than_their_irradiance_allows_refuse_the_albedo_bound(
+        default_basis, heldout_tables, monkeypatch):
+    """Exact photos of the gold whose given irradiance is 4 times too low (a
+    default of 1 with a camera's own units): the table they imply is 4 x the truth,
+    whose albedo reaches 3.7. Bounded at ALBEDO_BOUND, the every-pixel refit misses
+    each photo (measured 0.55 to 0.63 against the judge's 0.2) and the energy refit
+    is the table (sphere 0.140 against 4 x the truth); the free refit meets them
+    (0.00), so the photos refuse the bound: the refit is free, kept (measured
+    0.056), and the report says the irradiance is likely too low. The 'photo'
+    refinement (Refine to Photos) does the same."""
+    truth = 4.0 * heldout_tables["heldout_gold_medium"]
+    inputs = [dataclasses.replace(p, irradiance=0.25)
+              for p in _inputs(heldout_tables["heldout_gold_medium"])]
+    region = pipeline.run(default_basis, inputs, SETTINGS).regions[0]
+    judged = region.refinement["every_pixel"]
+    assert "irradiance is likely too low" in judged["bound_refused"]
+    assert judged["albedo_bound"] is None and judged["kept"]
+    assert region.refinement["table"] == "every_pixel"
+    assert energy.largest_albedo(region.table) > 3.0
+    refused = metrics.sphere_error(region.table, truth)
+    assert refused < 0.1
+    monkeypatch.setattr(refine, "BOUND_PRESSED", np.inf)  # the bound always holds
+    held = pipeline.run(default_basis, inputs, SETTINGS).regions[0]
+    assert "bound_refused" not in held.refinement["every_pixel"]
+    assert held.refinement["table"] == "energy"
+    assert refused < 0.6 * metrics.sphere_error(held.table, truth)
+    monkeypatch.undo()
+    photo = pipeline.run(default_basis, inputs,
+                         dataclasses.replace(SETTINGS, refine="photo")).regions[0]
+    assert photo.refinement["albedo_bound"] is None
+    assert "irradiance is likely too low" in photo.refinement["bound_refused"]
+    assert metrics.sphere_error(photo.table, truth) < 0.1
 
 
 def test_how_far_the_table_hangs_on_each_photo_is_its_sphere_error(default_basis,
@@ -513,9 +547,12 @@ def test_a_refit_that_meets_each_photo_only_where_it_alone_looks_is_not_kept(
     threshold (measured 0.17, 0.08, 0.02), by bending the table where no photo
     looks (a peak of 10^9 at grazing theta_d, sphere error 5 x 10^4). Refitted to
     two photos it does not predict the third, so it is not kept, and the table
-    stays finite and no worse than the trial. Bounded, as the user's own photos are
-    refitted, it cannot bend the table that far and misses the photos (measured
-    1.05 on the darkest): not kept either, and the same holds of the table."""
+    stays finite and no worse than the trial. Bounded, it cannot bend the table that
+    far and misses the photos (measured 1.05 on the darkest): not kept either, and
+    the same holds of the table. As the pipeline refits the user's photos, the
+    free refit meeting each photo where the bounded one cannot refuses the bound
+    (the photos say more light than the irradiance given), and is then judged,
+    and not kept, as above."""
     truth = heldout_tables["heldout_gold_medium"]
     inputs = _inputs(truth)
     inputs = [dataclasses.replace(p, photo=p.photo * s)
@@ -527,9 +564,15 @@ def test_a_refit_that_meets_each_photo_only_where_it_alone_looks_is_not_kept(
         assert (metrics.sphere_error(region.table, truth)
                 <= metrics.sphere_error(region.candidates[region.winner], truth) + 1e-12)
 
+    refused = pipeline.run(default_basis, inputs, SETTINGS).regions[0]
+    judged = refused.refinement["every_pixel"]
+    assert "bound_refused" in judged and judged["albedo_bound"] is None
+    assert not judged["kept"]
+    table_is_no_worse(refused)
+    monkeypatch.setattr(refine, "BOUND_PRESSED", np.inf)  # the bound always holds
     bounded = pipeline.run(default_basis, inputs, SETTINGS).regions[0]
     judged = bounded.refinement["every_pixel"]
-    assert judged["albedo_bound"] == refine.ALBEDO_BOUND
+    assert judged["albedo_bound"] == refine.ALBEDO_BOUND and "bound_refused" not in judged
     assert max(judged["per_photo"]) > SETTINGS.photo_consistent and not judged["kept"]
     table_is_no_worse(bounded)
     monkeypatch.setattr(refine, "ALBEDO_BOUND", None)
