@@ -129,6 +129,11 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
         skipped = [r for r in report["regions"] if r["status"] != "ok"]
         for r in skipped:
             self.report({"WARNING"}, f"Skipped {r['label']}: {r['reason']}")
+        for r in ok:
+            for line in pipeline.refinement_notes(r.get("refinement") or {}):
+                self.report({"WARNING"}, f"{r['label']}: {line}")
+                if bpy.app.background:
+                    print(f"note: {r['label']}: {line}", flush=True)
         self.report({"INFO"}, f"Reconstructed {len(ok)} region(s); "
                     f"{len(skipped)} skipped")
 

@@ -593,6 +593,15 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
         "threshold": judge, "trial_share": trial_share, "albedo_bound": bound}
 
 
+def refinement_notes(refinement: dict) -> list[str]:
+    """The sentences of a region's ``refinement`` record (``RegionResult.refinement``,
+    as in ``report.json``) its user should read: where the photos refused the
+    albedo bound, its irradiance is likely too low."""
+    notes = [refinement.get("bound_refused"),
+             (refinement.get("every_pixel") or {}).get("bound_refused")]
+    return [n for n in notes if n]
+
+
 def _reads(per_photo, judge: float) -> bool:
     """Whether a refit reproduces each photo (``per_photo``: relative RMSE, None
     where not finite) to ``judge`` or less."""

@@ -422,7 +422,8 @@ def test_photos_brighter_than_their_irradiance_allows_refuse_the_albedo_bound(
     each photo (measured 0.55 to 0.63 against the judge's 0.2) and the energy refit
     is the table (sphere 0.140 against 4 x the truth); the free refit meets them
     (0.00), so the photos refuse the bound: the refit is free, kept (measured
-    0.056), and the report says the irradiance is likely too low. The 'photo'
+    0.056), and the report says the irradiance is likely too low (the sentence the
+    panel and the batch run show, pipeline.refinement_notes). The 'photo'
     refinement (Refine to Photos) does the same."""
     truth = 4.0 * heldout_tables["heldout_gold_medium"]
     inputs = [dataclasses.replace(p, irradiance=0.25)
@@ -430,6 +431,7 @@ def test_photos_brighter_than_their_irradiance_allows_refuse_the_albedo_bound(
     region = pipeline.run(default_basis, inputs, SETTINGS).regions[0]
     judged = region.refinement["every_pixel"]
     assert "irradiance is likely too low" in judged["bound_refused"]
+    assert pipeline.refinement_notes(region.refinement) == [judged["bound_refused"]]
     assert judged["albedo_bound"] is None and judged["kept"]
     assert region.refinement["table"] == "every_pixel"
     assert energy.largest_albedo(region.table) > 3.0
@@ -438,6 +440,7 @@ def test_photos_brighter_than_their_irradiance_allows_refuse_the_albedo_bound(
     monkeypatch.setattr(refine, "BOUND_PRESSED", np.inf)  # the bound always holds
     held = pipeline.run(default_basis, inputs, SETTINGS).regions[0]
     assert "bound_refused" not in held.refinement["every_pixel"]
+    assert pipeline.refinement_notes(held.refinement) == []
     assert held.refinement["table"] == "energy"
     assert refused < 0.6 * metrics.sphere_error(held.table, truth)
     monkeypatch.undo()
@@ -445,6 +448,7 @@ def test_photos_brighter_than_their_irradiance_allows_refuse_the_albedo_bound(
                          dataclasses.replace(SETTINGS, refine="photo")).regions[0]
     assert photo.refinement["albedo_bound"] is None
     assert "irradiance is likely too low" in photo.refinement["bound_refused"]
+    assert pipeline.refinement_notes(photo.refinement) == [photo.refinement["bound_refused"]]
     assert metrics.sphere_error(photo.table, truth) < 0.1
 
 
