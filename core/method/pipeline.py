@@ -503,6 +503,7 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
             per_photo = [_finite_or_none(r) for r in
                          refine.relative_rmse_per_photo(refined, observed)]
             if _presses_bound(refined, per_photo, bound, at):
+                check(cancelled)
                 free = refine.photo_consistent(basis, start, observed, trusted, **inp.options)
                 free_per_photo = [_finite_or_none(r) for r in
                                   refine.relative_rmse_per_photo(free, observed)]
