@@ -148,7 +148,7 @@ ALBEDO_BOUND = 1.0
 # surface received (a default of 1 W/m^2 with a camera's own units: the table's level
 # is then the photos' scale, not a surface's), and the refit is left free
 # (pipeline.refine_chosen records why). With the given irradiance 4 times too low,
-# exact photos of the gold lost the every-pixel refit to the bound (sphere 0.057 ->
+# exact photos of the gold lost the every-pixel refit to the bound (sphere 0.056 ->
 # 0.140); the benches' captures, whose irradiance is right, never refuse it (photo
 # bench at d808b94: 0 of 114 Balanced runs; every number as with the bound alone)
 BOUND_PRESSED = 0.99

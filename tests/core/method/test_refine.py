@@ -414,6 +414,23 @@ def test_the_judges_refit_of_the_users_photos_reflects_no_more_than_it_receives(
     assert bounded < 0.8 * metrics.sphere_error(free.table, truth)
 
 
+def test_a_reconstructions_albedo_read_from_its_coefficients_is_its_tables(default_basis,
+                                                                          heldout_tables):
+    """refine.reconstruction_albedo reads a reconstruction's largest directional
+    albedo at the quadrature's cells only; it is energy.directional_albedo of the
+    expanded table on the same nodes (reference value) and within 0.01 of
+    energy.largest_albedo's finer quadrature."""
+    region = pipeline.run(default_basis, _inputs(heldout_tables["heldout_gold_medium"]),
+                          SETTINGS).regions[0]
+    rec = region.candidates.reconstructions[region.winner]
+    got = refine.reconstruction_albedo(rec)
+    want = float(np.max(energy.directional_albedo(rec.table, energy.CHECK_ANGLES_DEG,
+                                                  refine.ALBEDO_NODES, refine.ALBEDO_NODES)))
+    assert got == pytest.approx(want, rel=1e-10)
+    assert got == pytest.approx(energy.largest_albedo(rec.table), abs=0.01)
+    assert 0.5 < got < 1.5  # the gold's trial: near the truth's 0.92
+
+
 def test_photos_brighter_than_their_irradiance_allows_refuse_the_albedo_bound(
         default_basis, heldout_tables, monkeypatch):
     """Exact photos of the gold whose given irradiance is 4 times too low (a
