@@ -259,6 +259,8 @@ class BRDF_PT_results(_BRDFPanel, Panel):
                 continue
             box.label(text=iface_("Trial {trial}, KL {kl:.4f}").format(trial=r.winner, kl=r.kl),
                       translate=False)
+            for line in json.loads(r.notes or "[]"):
+                box.label(text=line, translate=False, icon="ERROR")
             counts = json.loads(r.counts or "{}")
             removed = "".join(iface_(", -{count} {stage}").format(count=v, stage=k)
                               for k, v in counts.get("removed", {}).items())

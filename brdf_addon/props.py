@@ -162,6 +162,10 @@ class BRDFRegionResult(PropertyGroup):
     winner: IntProperty(name="Chosen Trial", default=-1,
                         description="The trial the KL selection chose (-1 = none)")
     kl: FloatProperty(name="KL", description="KL divergence of the chosen trial, nats")
+    notes: StringProperty(name="Notes", default="[]",
+                          description="What the user should read about the region's table "
+                          "(JSON list of lines): e.g. photos brighter than the irradiance "
+                          "given lets them be")
     counts: StringProperty(name="Sample Counts",
                            description="Pixels of the region as JSON: observed, removed "
                            "per stage, reliable")

@@ -122,20 +122,25 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
 
     def _report_done(self, report):
         for line in gathering.capture_notes(report.get("capture", {})):
-            self.report({"INFO"}, line)
-            if bpy.app.background:
-                print(f"note: {line}", flush=True)
+            self._note("INFO", line)
         ok = [r for r in report["regions"] if r["status"] == "ok"]
         skipped = [r for r in report["regions"] if r["status"] != "ok"]
         for r in skipped:
             self.report({"WARNING"}, f"Skipped {r['label']}: {r['reason']}")
         for r in ok:
             for line in pipeline.refinement_notes(r.get("refinement") or {}):
-                self.report({"WARNING"}, f"{r['label']}: {line}")
-                if bpy.app.background:
-                    print(f"note: {r['label']}: {line}", flush=True)
+                self._note("WARNING", f"{r['label']}: {line}")
         self.report({"INFO"}, f"Reconstructed {len(ok)} region(s); "
                     f"{len(skipped)} skipped")
+
+    def _note(self, level: str, line: str):
+        """A note on the run for its user: the panel's report at ``level``, or in a
+        batch run one ``note: ...`` line (Blender would print a report there too, so
+        the line would come twice)."""
+        if bpy.app.background:
+            print(f"note: {line}", flush=True)
+        else:
+            self.report({level}, line)
 
 
 def _failure(error: Exception) -> str:

@@ -253,6 +253,36 @@ def test_camera_found_by_the_photo_name_when_left_out(job_dir):
                for ln in result.stdout.splitlines())
 
 
+def test_an_irradiance_too_low_is_named_per_region_and_the_run_goes_on(job_dir, registered):
+    """The scene's Lambert reflects 0.5 of its light (``BS.ALBEDO``); given a quarter
+    of the true irradiance, the photo reads as a surface reflecting 2.0, which no
+    table bounded at ``refine.ALBEDO_BOUND`` (1) can meet: the run still exits 0 with
+    its outputs, and prints one note naming the region and the likely cause (once:
+    not again as Blender's report), the sentence ``report.json`` and the saved
+    scene's results keep. With the true irradiance (``GOOD``) no such note."""
+    from brdf_reconstruct.core.method import refine
+
+    assert 4 * BS.ALBEDO > refine.ALBEDO_BOUND > BS.ALBEDO
+    job = GOOD.replace(f"irradiance = {math.pi}", f"irradiance = {math.pi / 4}") \
+        .replace('out = "out"', 'out = "dim"')
+    result = _run(job_dir, job, "dim.toml")
+    assert result.returncode == 0, result.stderr
+    report = json.loads((job_dir / "dim" / "report.json").read_text())
+    region = report["regions"][0]
+    refused = region["refinement"]["every_pixel"]["bound_refused"]
+    assert "irradiance is likely too low" in refused and "\n" not in refused
+    notes = [ln for ln in result.stdout.splitlines() if "likely too low" in ln]
+    assert notes == [f"note: {region['label']}: {refused}"]
+    assert region["label"] == "Known Lambert"  # the scan's material names the region
+    # the panel's results list shows it too: the run's saved scene keeps it per region
+    bpy.ops.wm.open_mainfile(filepath=str(job_dir / "dim" / "scene.blend"))
+    assert json.loads(bpy.context.scene.brdf.results[0].notes) == [refused]
+
+    good = _run(job_dir, GOOD.replace('out = "out"', 'out = "bright"'), "bright.toml")
+    assert good.returncode == 0, good.stderr
+    assert "likely too low" not in good.stdout
+
+
 def test_an_unknown_flag_exits_2_with_the_usage():
     result = subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch",
                              "--frobnicate"], capture_output=True, text=True, timeout=120)

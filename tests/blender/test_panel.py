@@ -217,6 +217,7 @@ def test_results(scene):
     ok = scene.brdf.results.add()
     ok.label, ok.status, ok.winner, ok.kl, ok.bake_error = "Scan", "ok", 3, 0.12, 0.04
     ok.counts = json.dumps({"observed": 900, "removed": {"curvature": 100}, "reliable": 800})
+    ok.notes = json.dumps(["the irradiance is likely too low"])
     ok.material = bpy.data.materials.new("BRDF Scan")
     ok.plot = bpy.data.images.new("plot", 4, 4)
     ok.slice_plot = bpy.data.images.new("slice", 4, 4)
@@ -230,6 +231,7 @@ def test_results(scene):
     assert "Trial 3, KL 0.1200" in labels
     assert "Samples: 900 observed, -100 curvature, 800 reliable" in labels
     assert "region 1: no photo sees it" in labels
+    assert "the irradiance is likely too low" in labels
     assert ("template_ID_preview", "plot") in calls
     assert ("template_ID_preview", "slice_plot") in calls
     assert ("operator", "brdf.export") in calls
@@ -278,6 +280,7 @@ def _add_results(scene):
     ok = scene.brdf.results.add()
     ok.label, ok.status, ok.winner, ok.kl, ok.bake_error = "Bronze", "ok", 3, 0.12, 0.04
     ok.counts = json.dumps({"observed": 900, "removed": {"curvature": 100}, "reliable": 800})
+    ok.notes = json.dumps(["Bronze: the irradiance is likely too low"])
     ok.table_path = "/tmp/brdf_0.binary"
     bad = scene.brdf.results.add()
     bad.label, bad.status, bad.reason = "slot 1", "skipped", "region 1: no photo sees it"
@@ -296,6 +299,7 @@ def test_only_constant_labels_are_translated_as_they_draw(scene):
     kept = {text for text, flag in flags if not flag}
     assert {"view0.exr", "cam", "Bronze", "region 1: no photo sees it",
             "a.png: 12 saturated pixels excluded", "Trial 3, KL 0.1200", "Bake error 0.040",
+            "Bronze: the irradiance is likely too low",
             "Samples: 900 observed, -100 curvature, 800 reliable", "brdf_0.binary",
             "G-buffers 1/3", "1 region(s)", "1 camera(s) in the scene"} <= kept
     assert {"No results yet", "Choose the scan first", "Press Esc to cancel"} <= translated
