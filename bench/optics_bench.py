@@ -4,7 +4,7 @@ Writes ``bench/results/optics.json`` and ``optics.png``.
 Run::
 
     export BRDF_RECONSTRUCT_CACHE=/work/main/.cache
-    .venv/bin/python bench/optics_bench.py            # about 30 minutes
+    .venv/bin/python bench/optics_bench.py            # about 35 minutes
     .venv/bin/python bench/optics_bench.py --quick    # 5 materials
 
 The synthetic captures shade each photo on the truth's G-buffers at the very
@@ -20,6 +20,10 @@ changed as ``VARIANTS`` says, then Balanced runs at seed 0 on the 12 analytic an
 7 measured held-out materials, each with the default basis without it:
 
 - ``point``: as captured (the photo bench's runs);
+- ``footprint``: each pixel the mean radiance over its area, no optics: the
+  photo shaded at twice the resolution (480 x 360, the truth's G-buffers rendered
+  so) and averaged 2 x 2, then the same 1 % noise, read on the same 240 x 180
+  G-buffers of the scan;
 - ``blur 0.5``, ``blur 1``: a Gaussian of that many pixels (sigma), the optics;
 - ``moved 0.5``: photo p moved by half a pixel along the direction at 120 p
   degrees (``scipy.ndimage.shift``, cubic spline, the nearest value beyond the
@@ -47,7 +51,8 @@ from brdf_reconstruct.core.brdf import metrics
 from brdf_reconstruct.core.method import pipeline
 from testkit import measured
 
-VARIANTS = ("point", "blur 0.5", "blur 1", "moved 0.5", "moved 0.5 and back")
+VARIANTS = ("point", "footprint", "blur 0.5", "blur 1", "moved 0.5", "moved 0.5 and back")
+FINE = 2  # the footprint's photos are shaded at FINE x the resolution, then averaged
 SCANS = ("scan", "exact")
 SEED = 0
 
@@ -58,14 +63,23 @@ def _moved(image: np.ndarray, p: int, d: float) -> np.ndarray:
                          mode="nearest")
 
 
-def changed(photos: list, variant: str) -> list:
+def changed(photos: list, variant: str, fine: list | None = None, seed: int = SEED) -> list:
     """``photos`` (PhotoInput) with each image changed as ``variant`` (of
     ``VARIANTS``) says: photo p moved along the direction at 120 p degrees (rows
-    down, columns right), or blurred; the G-buffers stay."""
+    down, columns right), blurred, or (``footprint``) replaced by ``fine``'s
+    noiseless photos (the same views at ``FINE`` x the resolution) averaged over
+    each pixel's area with 1 % noise; the G-buffers stay."""
+    rng = np.random.default_rng(seed)
     out = []
     for p, photo in enumerate(photos):
         image = np.asarray(photo.photo, dtype=np.float64)
-        if variant.startswith("blur"):
+        if variant == "footprint":
+            sharp = np.nan_to_num(np.asarray(fine[p].photo, dtype=np.float64))
+            h, w = image.shape[:2]
+            mean = sharp.reshape(h, FINE, w, FINE, -1).mean(axis=(1, 3))
+            mean *= 1.0 + 0.01 * rng.standard_normal(mean.shape)
+            image = np.where(np.isfinite(image), np.maximum(mean, 0.0), image)
+        elif variant.startswith("blur"):
             sigma = float(variant.split()[1])
             image = ndimage.gaussian_filter(image, (sigma, sigma, 0.0))
         elif variant.startswith("moved"):
@@ -129,16 +143,18 @@ def main(argv=None) -> int:
     names = common.pipeline_materials(args.quick)
     rows = []
     for obj in objects:
-        degraded = capture_arrays.gbuffers(mesh=None if obj == "bunny"
-                                           else measured.DATA / "spot.obj")
+        mesh = None if obj == "bunny" else measured.DATA / "spot.obj"
+        degraded = capture_arrays.gbuffers(mesh=mesh)
+        fine_arrays = capture_arrays.gbuffers(mesh=mesh, resolution=(240 * FINE, 180 * FINE))
         for scan, arrays in (("scan", degraded), ("exact", photo_bench.exact_scan(degraded))):
             for name in names:
                 truth = common.heldout_table(name)
                 B = common.default_basis_without(name)
                 photos = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=SEED)
+                fine = capture_arrays.photo_inputs(fine_arrays, truth)  # the truth's photos
                 line = []
                 for v in VARIANTS:
-                    region = pipeline.run(B, changed(photos, v),
+                    region = pipeline.run(B, changed(photos, v, fine),
                                           pipeline.PipelineSettings(seed=SEED),
                                           regions=[0]).regions[0]
                     rows.append({"object": obj, "scan": scan, "material": name, "variant": v,
@@ -149,8 +165,8 @@ def main(argv=None) -> int:
                 print(f"{obj} {scan} {name}: " + ", ".join(line), flush=True)
     doc = {"machine": common.machine_end(info), "materials": names, "variants": list(VARIANTS),
            "settings": f"Balanced (PipelineSettings(seed={SEED})), 3 photos, 1 % noise, "
-                       "Gaussian blur (sigma in pixels) or photo p moved at 120 p degrees "
-                       "(cubic spline)",
+                       "each pixel's area averaged (2 x 2 finer photos), Gaussian blur "
+                       "(sigma in pixels) or photo p moved at 120 p degrees (cubic spline)",
            "minutes": (time.perf_counter() - t0) / 60.0, "summary": summary(rows), "runs": rows}
     stem = "optics_quick" if args.quick else "optics"
     path = common.write_json(common.RESULTS / f"{stem}.json", doc, arguments=vars(args))
