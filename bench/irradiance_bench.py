@@ -42,7 +42,6 @@ import photo_bench
 
 from brdf_reconstruct.core.brdf import energy, metrics
 from brdf_reconstruct.core.method import pipeline, refine
-from testkit import measured
 
 SCALES = (0.25, 1.0, 2.0, 4.0)  # the irradiance given is the true one over k
 SCANS = ("scan", "exact")
@@ -135,9 +134,7 @@ def main(argv=None) -> int:
     names = common.pipeline_materials(args.quick)
     rows = []
     for obj in objects:
-        degraded = capture_arrays.gbuffers(mesh=None if obj == "bunny"
-                                           else measured.DATA / "spot.obj")
-        for scan, arrays in (("scan", degraded), ("exact", photo_bench.exact_scan(degraded))):
+        for scan, arrays in photo_bench.scans(obj).items():
             for name in names:
                 truth = common.heldout_table(name)
                 B = common.default_basis_without(name)

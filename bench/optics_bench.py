@@ -49,7 +49,6 @@ from scipy import ndimage
 
 from brdf_reconstruct.core.brdf import metrics
 from brdf_reconstruct.core.method import pipeline
-from testkit import measured
 
 VARIANTS = ("point", "footprint", "blur 0.5", "blur 1", "moved 0.5", "moved 0.5 and back")
 FINE = 2  # the footprint's photos are shaded at FINE x the resolution, then averaged
@@ -143,10 +142,9 @@ def main(argv=None) -> int:
     names = common.pipeline_materials(args.quick)
     rows = []
     for obj in objects:
-        mesh = None if obj == "bunny" else measured.DATA / "spot.obj"
-        degraded = capture_arrays.gbuffers(mesh=mesh)
-        fine_arrays = capture_arrays.gbuffers(mesh=mesh, resolution=(240 * FINE, 180 * FINE))
-        for scan, arrays in (("scan", degraded), ("exact", photo_bench.exact_scan(degraded))):
+        fine_arrays = capture_arrays.gbuffers(mesh=photo_bench.mesh_of(obj),
+                                              resolution=(240 * FINE, 180 * FINE))
+        for scan, arrays in photo_bench.scans(obj).items():
             for name in names:
                 truth = common.heldout_table(name)
                 B = common.default_basis_without(name)

@@ -90,6 +90,19 @@ def exact_scan(arrays: dict) -> dict:
     return out
 
 
+def mesh_of(obj: str):
+    """The truth's mesh of a pipeline bench's object: None (the capture's default,
+    the bunny) or Spot's."""
+    return None if obj == "bunny" else measured.DATA / "spot.obj"
+
+
+def scans(obj: str, **options) -> dict:
+    """The object's capture (``capture_arrays.gbuffers`` with ``options``) as
+    {"scan": the degraded scan, "exact": the truth's G-buffers as the scan}."""
+    degraded = capture_arrays.gbuffers(mesh=mesh_of(obj), **options)
+    return {"scan": degraded, "exact": exact_scan(degraded)}
+
+
 def main(argv=None) -> int:
     args, objects = common.pipeline_bench_arguments(__doc__, argv, 3, "5 materials, 1 seed")
     if args is None:
@@ -99,14 +112,12 @@ def main(argv=None) -> int:
     names = common.pipeline_materials(args.quick)
     rows = []
     for obj in objects:
-        degraded = capture_arrays.gbuffers(mesh=None if obj == "bunny"
-                                           else measured.DATA / "spot.obj")
-        scans = {"scan": degraded, "exact": exact_scan(degraded)}
+        captures = scans(obj)
         for name in names:
             truth = common.heldout_table(name)
             B = common.default_basis_without(name)
             for seed in range(seeds):
-                for scan, arrays in scans.items():
+                for scan, arrays in captures.items():
                     inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
                     rows.append(dict(object=obj, material=name, measured=common.is_measured(name),
                                      seed=seed, scan=scan, mode=TRUTH,

@@ -39,7 +39,6 @@ import photo_bench
 
 from brdf_reconstruct.core.brdf import metrics
 from brdf_reconstruct.core.method import pipeline, refine, selection
-from testkit import measured
 
 
 def main(argv=None) -> int:
@@ -66,9 +65,7 @@ def main(argv=None) -> int:
     names = common.pipeline_materials(args.quick)
     rows = []
     for obj in objects:
-        degraded = capture_arrays.gbuffers(mesh=None if obj == "bunny"
-                                           else measured.DATA / "spot.obj")
-        for scan, arrays in (("scan", degraded), ("exact", photo_bench.exact_scan(degraded))):
+        for scan, arrays in photo_bench.scans(obj).items():
             for name in names:
                 truth = common.heldout_table(name)
                 B = common.default_basis_without(name)
