@@ -173,15 +173,28 @@ def dirs_from_half_diff(theta_h, theta_d, phi_d):
     return wi, wo
 
 
+# Degenerate phi_d, put in bin 0 (cells_from_angles, _cells_block): phi_d within
+# _PHI_WRAP of pi (the same direction pair as phi_d = 0, where l, v and the normal
+# are coplanar: the rounding of a zero decides between bins 179 and 0), and any
+# phi_d where theta_d is below _THETA_D_ZERO (l and v equal, as with a flash on the
+# camera: phi_d is the angle of a vector of rounding noise). Otherwise the bin
+# hangs on the last bit of arctan2, which differs with how numpy vectorises it.
+_PHI_WRAP = 1e-9
+_THETA_D_ZERO = 1e-6
+
+
 def cells_from_angles(theta_h, theta_d, phi_d) -> np.ndarray:
     """Bin indices (N, 3) int64 ``(ith, itd, ipd)`` of half/difference angles (radians).
 
     Uses the reference reader's mapping, clamped to the grid; phi_d is folded to
-    [0, pi) first, and phi_d = 0 falls in bin 0.
+    [0, pi) first, and phi_d = 0 falls in bin 0, as do phi_d within 1e-9 rad of pi
+    (coplanar l, v and normal) and every phi_d of a theta_d below 1e-6 rad (l = v,
+    where phi_d is undefined): the bins of those do not hang on rounding.
     """
     theta_h = np.asarray(theta_h, dtype=np.float64)
     theta_d = np.asarray(theta_d, dtype=np.float64)
     phi_d = np.mod(np.asarray(phi_d, dtype=np.float64), np.pi)
+    phi_d = np.where((phi_d >= np.pi - _PHI_WRAP) | (theta_d < _THETA_D_ZERO), 0.0, phi_d)
     ith = np.floor(90.0 * np.sqrt(np.clip(theta_h, 0.0, None) / _HALF_PI))
     itd = np.floor(theta_d / _HALF_PI * 90.0)
     ipd = np.floor(phi_d / np.pi * 180.0)
@@ -463,6 +476,8 @@ def _cells_block(n, wi, wo, out, exact):
     phi_d = np.arctan2(uy, dx, out=uy)
     np.add(phi_d, np.pi, out=phi_d, where=phi_d < 0.0)
     np.copyto(phi_d, 0.0, where=phi_d >= np.pi)  # [0, pi): cells_from_angles' mod is a no-op
+    # cells_from_angles' degenerate phi_d in bin 0
+    np.copyto(phi_d, 0.0, where=(phi_d >= np.pi - _PHI_WRAP) | (theta_d < _THETA_D_ZERO))
     # cells_from_angles (theta_h = arccos(.) >= 0: its clip at 0 is a no-op too)
     ith = np.sqrt(np.divide(theta_h, _HALF_PI, out=theta_h), out=theta_h)
     ith *= 90.0

@@ -310,6 +310,36 @@ def test_einsum_dot_rounding_is_reproduced():
     np.testing.assert_array_equal(merl._dot_einsum(a[0], b.T), np.einsum("i,...i->...", a[0], b))
 
 
+def test_degenerate_phi_d_bins_do_not_hang_on_rounding():
+    """Where phi_d is undefined (l = v: a flash on the camera) or on the wrap (l, v
+    and the normal coplanar: phi_d = 0 and pi are one direction pair), its bin is
+    0 on both paths, and the same whatever the arrays' layout: numpy's vectorised
+    arctan2 rounds an element differently with its place in the array (on this
+    project's AVX-512 hosts the step-by-step and the one-pass bins differed there
+    in 1 run of 4)."""
+    rng = np.random.default_rng(5)
+    count = 2 * merl._CHUNK + 101
+    n = _unit(rng.normal(size=(count, 3)))
+    n[:, 2] = np.abs(n[:, 2])
+    w = _unit(n + 0.6 * _unit(rng.normal(size=(count, 3))))  # above the horizon mostly
+    flash = merl.cells_about_normals(n, w, w)  # l = v
+    assert np.all(flash[:, 2] == 0) and np.all(flash[:, 1] == 0)
+    np.testing.assert_array_equal(merl.cells_from_dirs(merl.to_local(n, w),
+                                                       merl.to_local(n, w)), flash)
+    light = _unit(np.array([0.3, -0.4, 0.87]))
+    coplanar = merl.cells_about_normals(n, light, n)  # v = n: l, v, n in one plane
+    assert np.all(coplanar[:, 2] == 0)
+    for offset in (1, 2, 3, 5, 8):  # another layout: the same bins, bit for bit
+        np.testing.assert_array_equal(merl.cells_about_normals(n[offset:], w[offset:],
+                                                               w[offset:]), flash[offset:])
+        np.testing.assert_array_equal(merl.cells_about_normals(n[offset:], light, n[offset:]),
+                                      coplanar[offset:])
+        part = n[offset:]
+        np.testing.assert_array_equal(
+            merl.cells_from_dirs(merl.to_local(part, np.broadcast_to(light, part.shape)),
+                                 merl.to_local(part, part)), coplanar[offset:])
+
+
 def test_cells_about_normals_equals_to_local_then_cells_from_dirs():
     """Bit for bit the same bins as the step-by-step path, including the poles,
     z = -0, wi = -wo (degenerate half vector), wi = wo, a constant light and a
