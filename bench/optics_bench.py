@@ -4,7 +4,7 @@ Writes ``bench/results/optics.json`` and ``optics.png``.
 Run::
 
     export BRDF_RECONSTRUCT_CACHE=/work/main/.cache
-    .venv/bin/python bench/optics_bench.py            # about 35 minutes
+    .venv/bin/python bench/optics_bench.py            # about 40 minutes
     .venv/bin/python bench/optics_bench.py --quick    # 5 materials
 
 The synthetic captures shade each photo on the truth's G-buffers at the very
@@ -24,6 +24,10 @@ changed as ``VARIANTS`` says, then Balanced runs at seed 0 on the 12 analytic an
   photo shaded at twice the resolution (480 x 360, the truth's G-buffers rendered
   so) and averaged 2 x 2, then the same 1 % noise, read on the same 240 x 180
   G-buffers of the scan;
+- ``footprint, modelled``: the same photos, and the scan's normals at the four
+  points of each pixel (its G-buffers rendered at 480 x 360) given as
+  ``PhotoInput.footprint_normal``: the refits to every pixel predict each pixel
+  as the mean over its area;
 - ``blur 0.5``, ``blur 1``: a Gaussian of that many pixels (sigma), the optics;
 - ``moved 0.5``: photo p moved by half a pixel along the direction at 120 p
   degrees (``scipy.ndimage.shift``, cubic spline, the nearest value beyond the
@@ -50,7 +54,8 @@ from scipy import ndimage
 from brdf_reconstruct.core.brdf import metrics
 from brdf_reconstruct.core.method import pipeline
 
-VARIANTS = ("point", "footprint", "blur 0.5", "blur 1", "moved 0.5", "moved 0.5 and back")
+VARIANTS = ("point", "footprint", "footprint, modelled", "blur 0.5", "blur 1", "moved 0.5",
+            "moved 0.5 and back")
 FINE = 2  # the footprint's photos are shaded at FINE x the resolution, then averaged
 SCANS = ("scan", "exact")
 SEED = 0
@@ -62,22 +67,37 @@ def _moved(image: np.ndarray, p: int, d: float) -> np.ndarray:
                          mode="nearest")
 
 
-def changed(photos: list, variant: str, fine: list | None = None, seed: int = SEED) -> list:
+def footprint_normals(fine_scan: dict, view: int) -> np.ndarray:
+    """(H, W, FINE^2, 3) the scan's normals at the FINE x FINE points of each pixel
+    of lit view ``view``, from its G-buffers at FINE x the resolution
+    (``fine_scan``, a ``photo_bench.scans`` entry); NaN off the object."""
+    n = np.array(fine_scan["scan_normal"][view], dtype=np.float64)
+    n[np.asarray(fine_scan["scan_region"][view]) < 0] = np.nan
+    h, w = n.shape[0] // FINE, n.shape[1] // FINE
+    return n.reshape(h, FINE, w, FINE, 3).swapaxes(1, 2).reshape(h, w, FINE * FINE, 3)
+
+
+def changed(photos: list, variant: str, fine: list | None = None,
+            fine_scan: dict | None = None, seed: int = SEED) -> list:
     """``photos`` (PhotoInput) with each image changed as ``variant`` (of
     ``VARIANTS``) says: photo p moved along the direction at 120 p degrees (rows
     down, columns right), blurred, or (``footprint``) replaced by ``fine``'s
     noiseless photos (the same views at ``FINE`` x the resolution) averaged over
-    each pixel's area with 1 % noise; the G-buffers stay."""
+    each pixel's area with 1 % noise, and (``footprint, modelled``) given
+    ``fine_scan``'s normals over each pixel; the G-buffers stay."""
     rng = np.random.default_rng(seed)
     out = []
     for p, photo in enumerate(photos):
         image = np.asarray(photo.photo, dtype=np.float64)
-        if variant == "footprint":
+        extra = {}
+        if variant.startswith("footprint"):
             sharp = np.nan_to_num(np.asarray(fine[p].photo, dtype=np.float64))
             h, w = image.shape[:2]
             mean = sharp.reshape(h, FINE, w, FINE, -1).mean(axis=(1, 3))
             mean *= 1.0 + 0.01 * rng.standard_normal(mean.shape)
             image = np.where(np.isfinite(image), np.maximum(mean, 0.0), image)
+            if variant.endswith("modelled"):
+                extra["footprint_normal"] = footprint_normals(fine_scan, p)
         elif variant.startswith("blur"):
             sigma = float(variant.split()[1])
             image = ndimage.gaussian_filter(image, (sigma, sigma, 0.0))
@@ -85,7 +105,7 @@ def changed(photos: list, variant: str, fine: list | None = None, seed: int = SE
             image = _moved(image, p, 0.5)
             if variant.endswith("back"):
                 image = _moved(image, p, -0.5)
-        out.append(dataclasses.replace(photo, photo=image))
+        out.append(dataclasses.replace(photo, photo=image, **extra))
     return out
 
 
@@ -142,17 +162,16 @@ def main(argv=None) -> int:
     names = common.pipeline_materials(args.quick)
     rows = []
     for obj in objects:
-        fine_arrays = capture_arrays.gbuffers(mesh=photo_bench.mesh_of(obj),
-                                              resolution=(240 * FINE, 180 * FINE))
+        fine_scans = photo_bench.scans(obj, resolution=(240 * FINE, 180 * FINE))
         for scan, arrays in photo_bench.scans(obj).items():
             for name in names:
                 truth = common.heldout_table(name)
                 B = common.default_basis_without(name)
                 photos = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=SEED)
-                fine = capture_arrays.photo_inputs(fine_arrays, truth)  # the truth's photos
+                fine = capture_arrays.photo_inputs(fine_scans["exact"], truth)  # the truth's
                 line = []
                 for v in VARIANTS:
-                    region = pipeline.run(B, changed(photos, v, fine),
+                    region = pipeline.run(B, changed(photos, v, fine, fine_scans[scan]),
                                           pipeline.PipelineSettings(seed=SEED),
                                           regions=[0]).regions[0]
                     rows.append({"object": obj, "scan": scan, "material": name, "variant": v,

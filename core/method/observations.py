@@ -70,6 +70,14 @@ class Samples:
     curvature: np.ndarray
     shapes: tuple = ()
     removed: dict = dataclasses.field(default_factory=dict)
+    # (N, S, 3) world-space normals of the scan at S points spread over each
+    # sample's pixel (NaN where a point misses the object); S = 0 (the default,
+    # None): the pixel read at its centre (observe's footprint_normal)
+    footprint: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.footprint is None:
+            object.__setattr__(self, "footprint", np.zeros((len(self.rho), 0, 3)))
 
     def __len__(self) -> int:
         return len(self.rho)
@@ -116,6 +124,7 @@ def observe(
     settings: ObservationSettings | None = None,
     curvature_map: np.ndarray | None = None,
     saturated: np.ndarray | None = None,
+    footprint_normal: np.ndarray | None = None,
 ) -> Samples:
     """Samples from one photo.
 
@@ -130,7 +139,11 @@ def observe(
     here when None). saturated: optional (H, W) bool of pixels at the camera's
     white level (``core.capture.photo_io.Photo.saturated``, found on the file's own code
     values); they are removed and counted as saturated, like pixels at or above
-    ``settings.clip_level``. Raises ValueError for mismatched shapes or a bad light.
+    ``settings.clip_level``. footprint_normal: optional (H, W, S, 3) world-space
+    normals of the scan at S points spread over each pixel (NaN where a point
+    misses the object), kept as ``Samples.footprint``: the refits then predict a
+    pixel as the mean radiance over its area, as a camera's pixel records it.
+    Raises ValueError for mismatched shapes or a bad light.
     """
     settings = settings or ObservationSettings()
     photo = np.asarray(photo, dtype=np.float64)
@@ -232,6 +245,17 @@ def observe(
     np.divmod(flat, shape[1], out=(pixel[:, 0], pixel[:, 1]))
     irr = np.empty((count, 3))
     irr[:] = irradiance
+    footprint = None
+    if footprint_normal is not None:
+        footprint_normal = np.asarray(footprint_normal, dtype=np.float64)
+        if footprint_normal.ndim != 4 or footprint_normal.shape[:2] != shape \
+                or footprint_normal.shape[3] != 3 or footprint_normal.shape[2] < 1:
+            raise ValueError(f"footprint_normal must have shape ({shape[0]}, {shape[1]}, S, 3)"
+                             f", got {footprint_normal.shape}")
+        footprint = np.take(footprint_normal.reshape(-1, *footprint_normal.shape[2:]), flat,
+                            axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            footprint = footprint / np.linalg.norm(footprint, axis=2, keepdims=True)
     return Samples(
         n=n, l=l, v=v, rho=rho, radiance=radiance,
         irradiance=irr, cells=cells,
@@ -241,6 +265,7 @@ def observe(
         curvature=np.take(H.reshape(-1), flat),
         shapes=(shape,),
         removed=removed,
+        footprint=footprint,
     )
 
 
@@ -315,6 +340,10 @@ def concatenate(parts: list[Samples]) -> Samples:
     """One sample set from several photos (views keep the index each part carries)."""
     if not parts:
         raise ValueError("no observations to concatenate")
+    points = {s.footprint.shape[1] for s in parts}
+    if len(points) > 1:
+        raise ValueError("every photo needs the same footprint points (or none), got "
+                         f"{sorted(points)} per pixel")
     fields = {f: np.concatenate([getattr(s, f) for s in parts])
               for f in _ARRAY_FIELDS}
     shapes = tuple(sh for s in parts for sh in s.shapes)

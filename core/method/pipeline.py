@@ -54,6 +54,9 @@ class PhotoInput:
     camera's white level (removed up front and counted). name: for reports.
     uv: optional (H, W, 2) the scan's UV map at each pixel (u right, v up; NaN
     where there is none), for textured regions (``core.method.textured``).
+    footprint_normal: optional (H, W, S, 3) the scan's normals at S points spread
+    over each pixel (NaN off the object): the refits to every pixel then predict
+    a pixel as the mean over its area (``observations.observe``).
     """
 
     photo: np.ndarray
@@ -68,6 +71,7 @@ class PhotoInput:
     name: str = ""
     saturated: np.ndarray | None = None
     uv: np.ndarray | None = None
+    footprint_normal: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -256,7 +260,7 @@ def observe_photos(inputs: Sequence[PhotoInput], settings: PipelineSettings,
         parts.append(observations.observe(
             p.photo, p.normal, p.position, p.visibility, p.region, p.camera_center, p.light,
             p.irradiance, p.mask, view_index=i, settings=settings.observation,
-            saturated=p.saturated))
+            saturated=p.saturated, footprint_normal=p.footprint_normal))
     counts = [dict(name=p.name, samples=len(part), removed=part.removed)
               for p, part in zip(inputs, parts, strict=True)]
     return observations.concatenate(parts), counts

@@ -245,7 +245,15 @@ def photo_consistent(
     # the radiance term's lookups, one set per normal draw: (Q (N, k), mean, weight
     # and m_eps (N,), shading (N, 3)); one draw, the scan's normals, by default
     # (each draw holds its own Q: N x k float64, 8 draws 8x the memory of one)
-    if normal_sigma == 0.0:
+    points = footprint_points(samples) if normal_sigma == 0.0 else None
+    if points is not None:  # each pixel the mean over the points of its footprint
+        draws = []
+        for n, inside in points:
+            Q, mean, w, eps, shading = _lookups(
+                basis, weight, m_eps, merl.cells_about_normals(n, samples.l, samples.v), n,
+                samples)
+            draws.append((Q, mean, w, eps, shading * inside[:, None]))
+    elif normal_sigma == 0.0:
         draws = [_lookups(basis, weight, m_eps, samples.cells, samples.n, samples)]
     else:
         rng = np.random.default_rng(0)
@@ -652,10 +660,35 @@ def _log_ratios(ratios) -> np.ndarray:
 
 def _predicted_radiance(rec: Reconstruction, samples: Samples) -> np.ndarray:
     """The radiance (N, 3) ``rec`` predicts at each of ``samples`` on the scan:
-    ``rho E max(n.l, 0)``, W/(m^2 sr)."""
-    rho = rec.rho_at(merl.linear_index(samples.cells))
-    cos_l = np.maximum(np.einsum("ij,ij->i", samples.n, samples.l), 0.0)
-    return rho * np.asarray(samples.irradiance) * cos_l[:, None]
+    ``rho E max(n.l, 0)``, W/(m^2 sr); with a footprint (``Samples.footprint``)
+    its mean over the points of each pixel's (0 at a point off the object)."""
+    points = footprint_points(samples)
+    if points is None:
+        rho = rec.rho_at(merl.linear_index(samples.cells))
+        cos_l = np.maximum(np.einsum("ij,ij->i", samples.n, samples.l), 0.0)
+        return rho * np.asarray(samples.irradiance) * cos_l[:, None]
+    total = 0.0
+    for n, inside in points:
+        rho = rec.rho_at(merl.linear_index(merl.cells_about_normals(n, samples.l, samples.v)))
+        cos_l = np.maximum(np.einsum("ij,ij->i", n, samples.l), 0.0) * inside
+        total = total + rho * cos_l[:, None]
+    return total / len(points) * np.asarray(samples.irradiance)
+
+
+def footprint_points(samples: Samples) -> list | None:
+    """Per point of the samples' pixel footprints (``Samples.footprint``, (N, S, 3)), its
+    normals (N, 3) (the pixel's own where the point misses the object or faces
+    away from the camera) and whether it is on the object, facing the camera
+    (N,) float 0 or 1; None without a footprint."""
+    if samples.footprint.shape[1] == 0:
+        return None
+    out = []
+    for k in range(samples.footprint.shape[1]):
+        n = samples.footprint[:, k]
+        inside = np.all(np.isfinite(n), axis=1)
+        inside[inside] &= np.einsum("ij,ij->i", n[inside], samples.v[inside]) > 0.0
+        out.append((np.where(inside[:, None], n, samples.n), inside.astype(np.float64)))
+    return out
 
 
 def energy_ratio(rec: Reconstruction, samples: Samples) -> float:

@@ -148,3 +148,36 @@ def test_observe_view_directions_and_subset_match_the_plain_ones(scene):
         for f in dataclasses.fields(s):
             if f.name not in ("shapes", "removed"):
                 np.testing.assert_array_equal(getattr(sub, f.name), getattr(s, f.name)[index])
+
+
+def test_a_pixel_footprint_follows_its_samples_and_is_checked():
+    """observe keeps footprint_normal's points of each kept pixel, normalised;
+    subset and concatenate carry them; a wrong shape, or photos with and without
+    a footprint together, are refused with one sentence."""
+
+    z = synthetic.height_field(16)
+    g = synthetic.gbuffer_from_heights(z)
+    photo = np.ones((16, 16, 3))
+    foot = np.repeat(2.0 * g.normal[:, :, None, :], 4, axis=2)  # (16, 16, 4, 3), length 2
+    foot[0, 0, 1] = np.nan  # a point off the object
+    args = (photo, g.normal, g.position, np.ones((16, 16)), np.zeros((16, 16), int),
+            g.camera_center, synthetic.LIGHTS[0])
+    s = observations.observe(*args, footprint_normal=foot)
+    assert s.footprint.shape == (len(s), 4, 3)
+    rows = s.pixel[:, 0] * 16 + s.pixel[:, 1]
+    expect = g.normal.reshape(-1, 3)[rows] / np.linalg.norm(g.normal.reshape(-1, 3)[rows],
+                                                            axis=1, keepdims=True)
+    finite = np.isfinite(s.footprint).all(axis=2)
+    np.testing.assert_allclose(s.footprint[finite], np.repeat(expect[:, None], 4, 1)[finite])
+    assert (~finite).sum() == (1 if 0 in rows else 0)
+    part = s.subset(np.arange(len(s)) % 3 == 0)
+    np.testing.assert_array_equal(part.footprint, s.footprint[::3])
+    both = observations.concatenate([s, part])
+    assert both.footprint.shape == (len(s) + len(part), 4, 3)
+    plain = observations.observe(*args)
+    assert plain.footprint.shape == (len(plain), 0, 3)
+    assert plain.subset([0, 1]).footprint.shape == (2, 0, 3)
+    with pytest.raises(ValueError, match="same footprint points"):
+        observations.concatenate([s, plain])
+    with pytest.raises(ValueError, match="footprint_normal must have shape"):
+        observations.observe(*args, footprint_normal=foot[:, :, 0])
