@@ -227,7 +227,10 @@ def photo_consistent(
     of ``energy.CHECK_ANGLES_DEG`` (``energy.albedo_quadrature``): the photos see
     part of the table, and without it the refit may fill the rest with more light
     than the surface receives (the pipeline bounds untextured photos' refits at
-    ``ALBEDO_BOUND``). Returns a new Reconstruction with
+    ``ALBEDO_BOUND``). Where ``samples`` carry a pixel footprint
+    (``Samples.footprint``) and normal_sigma is 0, the radiance term predicts each
+    pixel as the mean over its points (:func:`footprint_points`), as a camera's
+    pixel averages its area. Returns a new Reconstruction with
     all k coefficients per channel; its residuals are at the trusted samples'
     cells. Deterministic: no random choice beyond the seeded draws.
     """
