@@ -61,11 +61,11 @@ def run_once(B, inputs, held: bool):
 
 
 def row(region, truth, k) -> dict:
-    every = region.refinement.get("every_pixel") or {}
-    refused = every.get("bound_refused") or region.refinement.get("bound_refused")
+    """A run's scores; ``refused``: the photos refused the albedo bound (its only
+    refinement notes, ``pipeline.refinement_notes``, say so)."""
+    notes = pipeline.refinement_notes(region.refinement)
     return {"sphere": metrics.sphere_error(region.table, k * truth),
-            "table": region.refinement.get("table"), "refused": bool(refused),
-            "notes": pipeline.refinement_notes(region.refinement)}
+            "table": region.refinement.get("table"), "refused": bool(notes), "notes": notes}
 
 
 def summary(rows: list) -> dict:
