@@ -138,13 +138,15 @@ def run_job(path) -> dict:
     except RuntimeError as error:  # an operator's report (apply names a mesh it refused)
         raise ValueError(f"the job could not be set up: {_operator_message(error)}") from None
     runner = import_module(package.__name__ + ".brdf_addon.runner")
-    try:
-        bpy.ops.brdf.reconstruct()
-    except RuntimeError as error:  # the operator's one-line report
-        message = _operator_message(error)
-        if message.startswith(runner.INTERRUPTED):
-            raise KeyboardInterrupt from None
-        raise ValueError(message) from None
+    with runner.sigint_recorded():  # a Ctrl+C that Python swallows still ends the run
+        try:
+            bpy.ops.brdf.reconstruct()
+        except RuntimeError as error:  # the operator's one-line report
+            message = _operator_message(error)
+            if message.startswith(runner.INTERRUPTED):
+                raise KeyboardInterrupt from None
+            raise ValueError(message) from None
+        runner.check_interrupt()  # one swallowed while the results were written
     import json
 
     report = json.loads((job.out / "report.json").read_text())

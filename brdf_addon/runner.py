@@ -14,6 +14,9 @@ drive a :class:`Run`. Nothing of the user's is modified.
 
 from __future__ import annotations
 
+import contextlib
+import signal
+import threading
 import time
 import traceback
 
@@ -30,6 +33,40 @@ BASIS_MESSAGE_INTERVAL_S = 1.0
 # The operator's report when Ctrl+C interrupts a background run (Blender would turn
 # the KeyboardInterrupt into a traceback); the batch entry turns it back into exit 130.
 INTERRUPTED = "Interrupted (Ctrl+C); nothing was written half-way"
+
+
+# Ctrl+C seen during a batch run (set by on_sigint). Python's own SIGINT handler only
+# raises KeyboardInterrupt, and one raised while a destructor runs (Cycles frees its
+# render engine in __del__) is printed and swallowed: the run would go on and exit 0.
+_interrupted = threading.Event()
+
+
+def on_sigint(signum, frame) -> None:
+    """SIGINT handler of a batch run: records the interrupt, then raises
+    KeyboardInterrupt as Python's default handler does. If that exception is
+    swallowed, the run's next check (:meth:`Run.step`, the pipeline's cancel
+    poll) raises it again."""
+    _interrupted.set()
+    raise KeyboardInterrupt
+
+
+def check_interrupt() -> None:
+    """Raise KeyboardInterrupt if Ctrl+C came since :func:`sigint_recorded` began."""
+    if _interrupted.is_set():
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def sigint_recorded():
+    """While the block runs (main thread), Ctrl+C is recorded as well as raised
+    (:func:`on_sigint`); the previous handler comes back afterwards."""
+    _interrupted.clear()
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        _interrupted.clear()
 
 
 class RunFailed(Exception):
@@ -113,6 +150,7 @@ class Run:
         self._cancel = True
 
     def _cancelled(self) -> bool:
+        check_interrupt()  # a batch run's Ctrl+C ends it as an interruption, not a cancel
         return self._cancel
 
     def _basis_progress(self):
@@ -172,7 +210,9 @@ class Run:
         """Advance; True when finished. Raises ValueError (one sentence) on a user
         error, :class:`RunFailed` on any other fault of the science, and
         ``pipeline.Cancelled`` after :meth:`cancel` (once the worker thread, if
-        any, has stopped, so nothing runs on behind the user's back)."""
+        any, has stopped, so nothing runs on behind the user's back), and
+        KeyboardInterrupt after a batch run's Ctrl+C (:func:`on_sigint`)."""
+        check_interrupt()
         if self._cancel:
             if self._thread is not None and self._thread.is_alive():
                 self.message = "cancelling"
@@ -215,6 +255,7 @@ class Run:
             raise value
         if self.scene.brdf.kl_path == "CYCLES" and self._cycles_step(value):
             return False
+        check_interrupt()  # nothing written yet
         self.progress, self.message = 0.9, "writing results"
         self._timings["total_before_outputs"] = time.perf_counter() - self._t0
         self.report = outputs.write_back(

@@ -301,6 +301,45 @@ def test_ctrl_c_exits_130_with_one_line(monkeypatch, capsys):
     assert len(err) == 1 and err[0].startswith("error: interrupted")
 
 
+# Ctrl+C delivered while Cycles frees its render engine: Python runs the SIGINT
+# handler inside that destructor (engine.py's free), where an exception is printed and
+# swallowed. The stand-in below calls the handler installed at that moment the same way.
+_SWALLOWED_CTRL_C = """
+import signal, sys
+from brdf_reconstruct.brdf_addon import batch, photo_input
+
+real = photo_input.gather_photo
+
+class Engine:
+    def __del__(self):
+        signal.getsignal(signal.SIGINT)(signal.SIGINT, None)
+
+def gather_photo(*args, **kwargs):
+    Engine()  # freed at once
+    return real(*args, **kwargs)
+
+photo_input.gather_photo = gather_photo
+sys.exit(batch.main([sys.argv[1]]))
+"""
+
+
+def test_a_ctrl_c_swallowed_in_a_destructor_still_interrupts_the_run(job_dir):
+    """The interrupt is recorded, not only raised: the run stops at its next check,
+    exits 130 with one line, and the output folder gets nothing. With Python's own
+    handler this run went on to exit 0 (the bad-input sweep's ctrl-c-gbuffers case)."""
+    out = job_dir / "swallowed"
+    (job_dir / "swallowed.toml").write_text(GOOD.replace('out = "out"', 'out = "swallowed"'))
+    result = subprocess.run([sys.executable, "-c", _SWALLOWED_CTRL_C,
+                             str(job_dir / "swallowed.toml")],
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 130, result.stdout + result.stderr
+    errors = [ln for ln in result.stderr.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 1 and errors[0].startswith("error: interrupted")
+    assert "Exception ignored" in result.stderr  # the stand-in did swallow it
+    assert not out.exists() or not any(out.iterdir())
+    assert "writing results" not in result.stdout
+
+
 def test_wrong_command_line_exits_2():
     result = subprocess.run([sys.executable, "-m", "brdf_reconstruct.brdf_addon.batch"],
                             capture_output=True, text=True, timeout=120)
