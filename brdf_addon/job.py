@@ -33,7 +33,7 @@ SETTING_NAMES = (
     "use_brightest", "peak_max_angle", "clip_level", "min_cosine", "samples", "trials",
     "subset_fraction", "min_reliable_samples", "kl_path", "kl_bins", "kl_samples", "seed",
     "preset", "region_mode", "sampler", "keep_highlight_energy", "photo_consistent",
-    "refine_to_photos", "texture",
+    "refine_to_photos", "pixel_footprint", "texture",
     "texture_size", "uv_map", "material_model", "export_gltf",
 )
 

@@ -186,6 +186,9 @@ class BRDF_PT_settings(_BRDFPanel, Panel):
         sub.active = s.keep_highlight_energy and not s.refine_to_photos
         sub.prop(s, "photo_consistent")
         col.prop(s, "refine_to_photos")
+        sub = col.column()
+        sub.active = s.keep_highlight_energy or s.refine_to_photos
+        sub.prop(s, "pixel_footprint")
         layout.prop(s, "material_model")
         layout.prop(s, "export_gltf")
         col = layout.column(heading="Texture")

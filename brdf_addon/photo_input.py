@@ -16,7 +16,9 @@ For each entry of ``scene.brdf.photos`` :func:`gather_photo`:
 4. undistorts photo, masks and saturation through the COLMAP camera model
    (``core.capture.undistort``) when the camera has lens distortion, so the pixels line
    up with the Blender (pinhole) camera;
-5. finds the light (``light_sources.photo_light``) and renders the G-buffers;
+5. finds the light (``light_sources.photo_light``) and renders the G-buffers
+   (with Pixel Footprint where a refit reads it, also the scan's normals at 2 x 2
+   points of each pixel, ``core.method.gbuffers.footprint_normals``);
    the scan's silhouette is the mask, shrunk by the photo's silhouette margin;
    refuses a photo black over the scan or brighter where the G-buffer says
    shadow than where it says light, and notes one that is partly so
@@ -42,8 +44,13 @@ import numpy as np
 from scipy import ndimage
 
 from ..core.capture import exif, irradiance, photo_checks, photo_io, undistort
-from ..core.method import pipeline
-from . import gbuffer, light_sources, prefs
+from ..core.method import gbuffers, pipeline
+from . import gbuffer, light_sources, prefs, props
+
+# With the Pixel Footprint setting, the scan's normals are also rendered at this many
+# times the photo's width and height: 2 x 2 points per pixel, whose mean radiance the
+# refits to every pixel predict (a pixel records the light over its area).
+FOOTPRINT_FACTOR = 2
 
 
 @dataclasses.dataclass
@@ -139,6 +146,14 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
                                 uv=settings.texture, uv_map=settings.uv_map)
     if not g.mask.any():
         raise ValueError(f"the scan is not in view of photo {photo.name}'s camera")
+    footprint = None
+    if props.footprint_used(settings):  # the scan's normals over each pixel's area
+        fine = gbuffer.render_gbuffers(
+            settings.target, photo.camera, light,
+            resolution=(w * FOOTPRINT_FACTOR, h * FOOTPRINT_FACTOR),
+            device=prefs.cycles_device(), region_attribute=attribute)
+        footprint = gbuffers.footprint_normals(fine, FOOTPRINT_FACTOR)
+        report["pixel_footprint"] = FOOTPRINT_FACTOR * FOOTPRINT_FACTOR
     cosine = np.einsum("hwc,c->hw", g.normal, light)
     if not np.any(cosine[g.mask] > 0):
         raise ValueError(f"the light of photo {photo.name} is below every surface of the scan")
@@ -176,7 +191,7 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
             photo=radiance, normal=g.normal, position=g.position, visibility=g.visibility,
             region=g.region, camera_center=g.camera_center, light=light,
             irradiance=np.array(photo.irradiance, dtype=np.float64), mask=mask,
-            name=photo.name, saturated=saturated, uv=g.uv),
+            name=photo.name, saturated=saturated, uv=g.uv, footprint_normal=footprint),
         report=report, reference=reference)
 
 

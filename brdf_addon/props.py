@@ -323,6 +323,13 @@ class BRDFSettings(PropertyGroup):
         "accurate normals: with exact ones it cut the median sphere error from 0.23 to "
         "about 0.07; on a blunted scan it was even (0.39 against 0.40), and with noisy "
         "normals it can overshoot a mirror's peak. Off by default")
+    pixel_footprint: BoolProperty(
+        name="Pixel Footprint", default=True,
+        description="Also render the scan's normals at 2 x 2 points of each photo pixel, "
+        "so the refits to every pixel predict what a camera's pixel records: the light "
+        "over its area, not at its center. Pays on accurate scans (exact normals: sphere "
+        "error 0.135 to 0.078 on the bunny, 0.206 to 0.080 on Spot); 4 x the G-buffer "
+        "pixels")
 
     # texture (issue 16)
     texture: BoolProperty(
@@ -440,6 +447,14 @@ def pipeline_settings(settings):
         refine=("photo" if settings.refine_to_photos
                 else "energy" if settings.keep_highlight_energy else "none"),
         photo_consistent=settings.photo_consistent)
+
+
+def footprint_used(settings) -> bool:
+    """Whether a run renders the pixel footprint (``pixel_footprint``): only a refit
+    (``keep_highlight_energy``, ``refine_to_photos``) reads it, so without one (the
+    Paper preset) it is not rendered."""
+    return bool(settings.pixel_footprint
+                and (settings.keep_highlight_energy or settings.refine_to_photos))
 
 
 def settings_dict(settings) -> dict:

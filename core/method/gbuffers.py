@@ -121,3 +121,26 @@ def decode(channels, *, light, slots, center, ortho, window, uv: bool = False) -
     return GBuffers(normal=normal, position=position, visibility=visibility,
                     region=region.astype(np.int32), mask=mask, camera_center=center,
                     orthographic=ortho, window=window, uv=uv_map)
+
+
+def footprint_normals(fine: GBuffers, factor: int) -> np.ndarray:
+    """The scan's normals over each photo pixel's area, from ``fine``: G-buffers of the
+    same camera rendered at ``factor`` x the photo's width and height (each photo pixel
+    covers factor x factor fine pixels, whose centres spread evenly over it).
+
+    Returns (H, W, factor**2, 3) float64, world space, unit; the sub-points in row-major
+    order within the pixel; NaN where the fine pixel misses the object. This is
+    ``pipeline.PhotoInput.footprint_normal``. ValueError (one sentence) for a factor
+    below 1 or a fine size that is not a multiple of it.
+    """
+    if int(factor) != factor or factor < 1:
+        raise ValueError(f"the footprint factor must be a positive integer, got {factor}")
+    factor = int(factor)
+    rows, cols = fine.shape
+    if rows % factor or cols % factor:
+        raise ValueError(f"fine G-buffers of {cols} x {rows} pixels are not {factor} x a "
+                         "photo's size")
+    normal = np.where(fine.mask[..., None], fine.normal, np.nan)
+    normal = normal.reshape(rows // factor, factor, cols // factor, factor, 3)
+    return normal.transpose(0, 2, 1, 3, 4).reshape(rows // factor, cols // factor,
+                                                    factor * factor, 3)

@@ -245,9 +245,9 @@ def photo_consistent(
     weight, m_eps = _mapping_f64(basis)
     lo, hi = basis.x_range
 
-    # the radiance term's lookups, one set per normal draw: (Q (N, k), mean, weight
-    # and m_eps (N,), shading (N, 3)); one draw, the scan's normals, by default
-    # (each draw holds its own Q: N x k float64, 8 draws 8x the memory of one)
+    # the radiance term's lookups, one set per normal draw or footprint point,
+    # stacked: Q (N, S, k), mean, weight and m_eps (N, S), shading (N, S, 3); one
+    # draw, the scan's normals, by default (S draws hold S x the memory of one)
     points = footprint_points(samples) if normal_sigma == 0.0 else None
     if points is not None:  # each pixel the mean over the points of its footprint
         draws = []
@@ -270,6 +270,9 @@ def photo_consistent(
             draws.append(_lookups(basis, weight, m_eps,
                                   merl.cells_about_normals(m, samples.l, samples.v), m,
                                   samples))
+    Q_d, mean_d, weight_d, m_eps_d, shading_d = (np.stack(parts, axis=1)
+                                                 for parts in zip(*draws, strict=True))
+    del draws
     radiance = np.asarray(samples.radiance, dtype=np.float64)
 
     trows, inside, Qt, mean_t, x_t = _trusted_term(basis, trusted)
@@ -296,15 +299,17 @@ def photo_consistent(
 
     def predict(c, ch, jacobian=True):
         """Radiance (N,) of channel ``ch`` and its Jacobian (N, k) in c (None if not
-        asked for): the mean over the normal draws."""
-        value, jac = 0.0, 0.0
-        for Q, mean, weight, m_eps, shading in draws:
-            g = shading[:, ch]
-            e = m_eps * np.exp(np.clip(Q @ c + mean, lo - _MARGIN, hi + _MARGIN))
-            value = value + np.maximum(e - EPS, 0.0) / weight * g
-            if jacobian:
-                jac = jac + (e / weight * g)[:, None] * Q
-        return value / len(draws), (jac / len(draws) if jacobian else None)
+        asked for): the mean over the normal draws (or footprint points)."""
+        g = shading_d[:, :, ch]
+        x = (Q_d.reshape(-1, k) @ c).reshape(mean_d.shape)  # one product for all draws
+        e = m_eps_d * np.exp(np.clip(x + mean_d, lo - _MARGIN, hi + _MARGIN))
+        value = np.sum(np.maximum(e - EPS, 0.0) / weight_d * g, axis=1) / g.shape[1]
+        if not jacobian:
+            return value, None
+        d = e / weight_d * g  # (N, S): d radiance / d (Q c) per draw
+        if g.shape[1] == 1:
+            return value, d[:, 0, None] * Q_d[:, 0]
+        return value, np.matmul(d[:, None, :], Q_d)[:, 0] / g.shape[1]
 
     def profiled(c, ch, obs, xt):
         """-2 log posterior of c with both noise levels at their maximum (the

@@ -371,6 +371,42 @@ def test_more_samples_stay_near_the_pixel_centre():
     assert np.median(turn) < 0.01 and np.mean(turn > 0.1) < 0.02 and turn.max() < 2.0
 
 
+def test_a_pixel_footprint_holds_the_sphere_at_each_points_own_ray():
+    """The footprint (G-buffers at 2 x the photo's size, grouped per photo pixel) gives
+    the analytic sphere's normal along the ray through each of a pixel's 2 x 2
+    points (offsets of a quarter pixel), not the centre's: the points of one pixel
+    differ by the sphere's turn over half a pixel, and their mean is the centre's."""
+    width, height = 96, 72
+    cam = _camera((0.3, -6.0, 2.1), CENTER, width=width, height=height)
+    sphere = _sphere()
+    light = [0.0, 0.0, 1.0]
+    centre = gbuffer.render_gbuffers(sphere, cam, light)
+    fine = gbuffer.render_gbuffers(sphere, cam, light, resolution=(2 * width, 2 * height))
+    fp = gbuffers.footprint_normals(fine, 2)
+    assert fp.shape == (height, width, 4, 3)
+    origins, directions = _pixel_rays(cam, 2 * width, 2 * height)
+    hit, _, normals = _sphere_hits(origins, directions)
+    hit = hit.reshape(height, 2, width, 2).transpose(0, 2, 1, 3).reshape(height, width, 4)
+    normals = normals.reshape(height, 2, width, 2, 3).transpose(0, 2, 1, 3, 4).reshape(
+        height, width, 4, 3)
+    on = np.isfinite(fp).all(axis=-1)
+    assert np.array_equal(on, np.linalg.norm(fp, axis=-1) > 0.5, equal_nan=False)
+    # inside the silhouette (all four points on the sphere and facing the camera)
+    facing = -np.sum(normals * directions.reshape(height, 2, width, 2, 3).transpose(
+        0, 2, 1, 3, 4).reshape(height, width, 4, 3), axis=-1) > 0.2
+    inner = (on & hit & facing).all(axis=-1) & centre.mask
+    assert inner.sum() > 500
+    assert _angle_deg(fp[inner], normals[inner]).max() < 0.2
+    # the points are not the centre's normal: they spread over the pixel
+    spread = _angle_deg(fp[inner][:, 0], fp[inner][:, 3])
+    assert np.median(spread) > 0.3
+    mean = fp[inner].mean(axis=1)
+    assert np.median(_angle_deg(mean, centre.normal[inner])) < 0.1 * np.median(spread)
+    # a pixel on the silhouette has points off the sphere (NaN), the rest unit normals
+    assert np.any(~on.all(axis=-1) & on.any(axis=-1))
+    assert np.allclose(np.linalg.norm(fp[on], axis=-1), 1.0)
+
+
 def test_object_outside_the_frame():
     sphere = _sphere()
     sphere.location = (10.0, 0.0, 0.0)

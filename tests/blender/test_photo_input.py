@@ -217,6 +217,34 @@ def test_silhouette_margin_shrinks_the_mask(tiny):
     assert inputs[0].mask.sum() == pytest.approx(math.pi * (r - 2) ** 2, rel=0.1)
 
 
+def test_the_pixel_footprint_is_rendered_only_where_a_refit_reads_it(tiny):
+    """Pixel Footprint (on by default): 2 x 2 normals per pixel of the sphere, whose
+    mean is the pixel's own normal; not rendered when off, nor without a refit (the
+    Paper preset), since only the refits read it."""
+    _entry(tiny, tiny["photo"])
+    settings = tiny["scene"].brdf
+    assert settings.pixel_footprint and settings.keep_highlight_energy
+    inputs, capture = gathering.gather_capture(tiny["scene"])
+    fp, g = inputs[0].footprint_normal, inputs[0]
+    assert fp.shape == (48, 48, 4, 3) and capture["photos"][0]["pixel_footprint"] == 4
+    inner = np.isfinite(fp).all(axis=(2, 3)) & (g.region >= 0)
+    assert inner.sum() > 100
+
+    def angle(a, b):
+        cos = np.sum(a * b, axis=-1) / np.linalg.norm(a, axis=-1) / np.linalg.norm(b, axis=-1)
+        return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+    spread = angle(fp[inner][:, 0], fp[inner][:, 3])  # a pixel's diagonal points
+    off = angle(fp[inner].mean(axis=1), g.normal[inner])
+    assert np.median(spread) > 1.0 and np.median(off) < 0.1 * np.median(spread)
+    settings.pixel_footprint = False
+    inputs, capture = gathering.gather_capture(tiny["scene"])
+    assert inputs[0].footprint_normal is None and "pixel_footprint" not in capture["photos"][0]
+    settings.pixel_footprint, settings.preset = True, "PAPER"
+    assert not settings.keep_highlight_energy and not settings.refine_to_photos
+    assert gathering.gather_capture(tiny["scene"])[0][0].footprint_normal is None
+
+
 # --- the sun from EXIF and GPS, in a scene whose up is not +Z ---------------------
 
 def test_sun_from_exif_time_and_gps_place(tiny):
