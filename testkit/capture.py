@@ -16,13 +16,16 @@ What exists:
 
 - :func:`render_lit_photos`: the lit photos, shaded by the ground-truth table
   itself (the Cycles table shader, ``brdf_addon.table_shader``).
-- :func:`generate`: all of it as files a user would have, with a job file.
+- :func:`generate`: all of it as files a user would have, with a job file, and
+  the ground truth as ``truth.ply`` in the scan's frame (the exact-normal scan:
+  a job with ``mesh = "truth.ply"``).
 
 The ambient multi-view images and pycolmap's SfM on them are in ``testkit/sfm.py``
 (the benchmark: ``bench/sfm.py``). Used by the demo (``bench/demo.py``), the
 benchmarks (``bench/capture_arrays.py``, ``bench/heldout_bench.py``,
-``bench/camera_inputs_bench.py``) and the capture tests (``tests/blender/``); run
-as a script (:func:`command`) it writes one capture folder.
+``bench/camera_inputs_bench.py``, ``bench/footprint_bench.py``) and the capture
+tests (``tests/blender/``); run as a script (:func:`command`) it writes one capture
+folder.
 """
 
 from __future__ import annotations
@@ -298,11 +301,8 @@ def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
         texture_io.write_albedo(texture_path, np.asarray(texture, dtype=np.float64), "EXR")
     photos = render_lit_photos(truth, [cameras[i] for i in lit_views], table, light,
                                folder / "lit", resolution, texture_path=texture_path)
-    bpy.ops.object.select_all(action="DESELECT")
-    scan.select_set(True)
-    bpy.context.view_layer.objects.active = scan
-    bpy.ops.wm.ply_export(filepath=str(folder / "scan.ply"), export_selected_objects=True,
-                          export_normals=True, export_uv=True, apply_modifiers=True)
+    export_ply(scan, folder / "scan.ply")
+    export_ply(truth, folder / "truth.ply")
     merl.write(folder / "truth.binary", table)
     lines = ['mesh = "scan.ply"', 'colmap = "sparse/0"', 'out = "out"', "",
              "[settings]", f"seed = {seed}"]
@@ -317,29 +317,48 @@ def generate(folder, table, *, mesh=None, n_views: int = 6, lit_views=(0, 2, 4),
     return job
 
 
+def export_ply(obj, path) -> pathlib.Path:
+    """Write ``obj`` alone as a PLY file (world coordinates, normals and UVs, Blender's
+    default axes, which the job file's ``mesh`` import keeps): ``scan.ply`` and
+    ``truth.ply`` of :func:`generate` alike, so both share the cameras' frame."""
+    bpy.ops.object.select_all(action="DESELECT")
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.wm.ply_export(filepath=str(path), export_selected_objects=True,
+                          export_normals=True, export_uv=True, apply_modifiers=True)
+    return pathlib.Path(path)
+
+
 def default_subject() -> str:
     """"bunny" when :data:`DATA` holds the Stanford bunny, else "suzanne" (the
     fallback of :func:`default_ground_truth`)."""
     return "bunny" if (DATA / "stanford-bunny.obj").is_file() else "suzanne"
 
 
-def cache_folder(material: str, views: int, lit: int, resolution, seed: int) -> pathlib.Path:
+def cache_folder(material: str, views: int, lit: int, resolution, seed: int,
+                 mesh=None) -> pathlib.Path:
     """Where the benchmarks and the demo keep the capture of these settings
-    (``<cache>/captures/<subject>_<material>_...``); see :func:`command`."""
+    (``<cache>/captures/<subject>_<material>_...``); see :func:`command`. subject:
+    :func:`default_subject`, or the stem of ``mesh`` (a ground-truth mesh file, e.g.
+    ``spot`` for ``spot.obj``) when one is given."""
     from brdf_reconstruct.core.brdf import basis
 
     w, h = resolution
+    subject = pathlib.Path(mesh).stem if mesh else default_subject()
     return (basis.default_cache_dir() / "captures"
-            / f"{default_subject()}_{material}_{views}v{lit}l_{w}x{h}_s{seed}")
+            / f"{subject}_{material}_{views}v{lit}l_{w}x{h}_s{seed}")
 
 
-def command(folder, material: str, views: int, lit: int, resolution, seed: int) -> list:
+def command(folder, material: str, views: int, lit: int, resolution, seed: int,
+            mesh=None) -> list:
     """The command line that writes that capture to ``folder`` (a fresh process, so
-    that the caller's Blender scene is untouched)."""
+    that the caller's Blender scene is untouched); ``mesh``: the ground truth's mesh
+    file (``--mesh``), default :func:`default_ground_truth`'s."""
     w, h = resolution
-    return [sys.executable, str(pathlib.Path(__file__).resolve()), str(folder),
+    line = [sys.executable, str(pathlib.Path(__file__).resolve()), str(folder),
             "--material", material, "--views", str(views), "--lit", str(lit),
             "--width", str(w), "--height", str(h), "--seed", str(seed)]
+    return line + (["--mesh", str(pathlib.Path(mesh).resolve())] if mesh else [])
 
 
 def preset_job(folder, preset: str, out=None) -> pathlib.Path:
@@ -362,9 +381,10 @@ def _say(message: str) -> None:
 
 
 def main(argv=None) -> int:
-    """``python testkit/capture.py OUT --material NAME ...``: write a capture to OUT.
-    NAME: an analytic held-out material (``database.heldout_specs``) or a measured
-    one of the pack (``testkit.measured.PACK``)."""
+    """``python testkit/capture.py OUT --material NAME [--mesh PATH] ...``: write a
+    capture to OUT. NAME: an analytic held-out material (``database.heldout_specs``)
+    or a measured one of the pack (``testkit.measured.PACK``); PATH: the ground
+    truth's .obj/.ply (default: the bunny of ../shared/data, else Suzanne)."""
     import argparse
 
     from brdf_reconstruct.core.brdf import database
@@ -377,7 +397,12 @@ def main(argv=None) -> int:
     parser.add_argument("--width", type=int, default=240)
     parser.add_argument("--height", type=int, default=180)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--mesh", default=None,
+                        help="the ground truth's .obj/.ply (default: the bunny)")
     args = parser.parse_args(argv)
+    if args.mesh and not pathlib.Path(args.mesh).is_file():
+        print(f"error: mesh not found: {args.mesh}", file=sys.stderr)
+        return 2
     specs = {s["name"]: s for s in database.heldout_specs()}
     if args.material in specs:
         table = database.make_table(specs[args.material])
@@ -392,7 +417,7 @@ def main(argv=None) -> int:
             return 2
         table = nbrdf.tabulate(pack, pack.index(args.material))
     step = max(1, args.views // args.lit)
-    job = generate(args.out, table, n_views=args.views,
+    job = generate(args.out, table, mesh=args.mesh, n_views=args.views,
                    lit_views=tuple(range(0, args.views, step))[: args.lit],
                    resolution=(args.width, args.height), seed=args.seed)
     print(f"wrote {job}")

@@ -240,7 +240,9 @@ def test_the_pixel_footprint_is_rendered_only_where_a_refit_reads_it(tiny):
     settings.pixel_footprint = False
     inputs, capture = gathering.gather_capture(tiny["scene"])
     assert inputs[0].footprint_normal is None and "pixel_footprint" not in capture["photos"][0]
-    settings.pixel_footprint, settings.preset = True, "PAPER"
+    settings.preset = "PAPER"  # no refit, and the preset turns the footprint off
+    assert not settings.pixel_footprint
+    settings.pixel_footprint = True  # on again by hand: still nothing reads it
     assert not settings.keep_highlight_energy and not settings.refine_to_photos
     assert gathering.gather_capture(tiny["scene"])[0][0].footprint_normal is None
 
