@@ -36,14 +36,17 @@ sphere error from 0.397 to 0.280 on the degraded bunny, 0.668 to 0.534 on
 degraded Spot, and 0.234 to 0.150 and 0.196 to 0.158 on their exact scans. The
 paper's method has no such step.
 
-Balanced and Accurate model each photo pixel's footprint (``pixel_footprint``, added
-2026-12-07: the scan's normals at 2 x 2 points per pixel, read by the refits to every
-pixel); Fast does not, for its time. Measured through the extension on Cycles-rendered
-photos (``bench/footprint_bench.py``, six held-out materials, seed 0): on the
-exact-normal scans the median sphere error 0.126 -> 0.104 (bunny) and 0.134 -> 0.081
-(Spot), on the degraded ones 0.146 -> 0.144 and 0.369 -> 0.369, for about 1.3 to 2.1 s
-more per run (a second G-buffer render per photo, and the refits' pixel predictions
-made four times). The paper reads each pixel at its centre and has no refit.
+Accurate models each photo pixel's footprint (``pixel_footprint``, added 2026-12-07: the
+scan's normals at 2 x 2 points per pixel, read by the refits to every pixel); the others
+do not. Measured through the extension on Cycles-rendered photos
+(``bench/footprint_bench.py``, six held-out materials, seed 0): on the exact-normal
+scans the median sphere error 0.126 -> 0.104 (bunny) and 0.134 -> 0.081 (Spot), on the
+degraded ones 0.146 -> 0.144 and 0.369 -> 0.369, for about 1.3 to 2.1 s more per run
+(a second G-buffer render per photo, and the refits' pixel predictions made four
+times). In Balanced that time broke issue 15's 5 s for the demo's batch run (6.10 s
+against 4.5 to 5 s without, best of 3) and bought nothing on a blunted scan, so it
+stays off there: turn it on for an accurate scan. The paper reads each pixel at its
+centre and has no refit.
 
 Choosing a preset in the panel sets these values; setting one of them to another
 value afterwards (in the panel or a job file) makes the preset Custom
@@ -54,7 +57,7 @@ PRESETS = {
     "FAST": dict(samples=20, trials=4, subset_fraction=0.5, kl_path="FAST", kl_samples=16,
                  keep_highlight_energy=True, pixel_footprint=False),
     "BALANCED": dict(samples=20, trials=16, subset_fraction=0.5, kl_path="FAST",
-                     kl_samples=16, keep_highlight_energy=True, pixel_footprint=True),
+                     kl_samples=16, keep_highlight_energy=True, pixel_footprint=False),
     "ACCURATE": dict(samples=20, trials=16, subset_fraction=0.5, kl_path="CYCLES",
                      kl_samples=4, keep_highlight_energy=True, pixel_footprint=True),
     "PAPER": dict(samples=6, trials=16, subset_fraction=0.5, kl_path="CYCLES", kl_samples=4,
@@ -72,9 +75,8 @@ PRESETS = {
 # and the demo capture's (docs/results.md, "The pixel footprint through the extension").
 HINTS = {
     "FAST": "20 samples x 4 trials, numpy selection, judged refit: about 1.5 s, error 0.17",
-    "BALANCED": "20 samples x 16 trials, numpy selection, judged refit: about 2 s, error 0.18; "
-                "pixel footprint about 1.5 s more",
+    "BALANCED": "20 samples x 16 trials, numpy selection, judged refit: about 2 s, error 0.18",
     "ACCURATE": "20 samples x 16 trials, Cycles selection, judged refit: about 6 s, error 0.18; "
-                "pixel footprint about 1.5 s more",
+                "pixel footprint (accurate scans) about 1.5 s more",
     "PAPER": "The paper's method: 6 samples x 16 trials, Cycles selection: about 5 s, error 0.27",
 }

@@ -330,7 +330,7 @@ class BRDFSettings(PropertyGroup):
         "so the refits to every pixel predict what a camera's pixel records: the light "
         "over its area, not at its center. Pays on accurate scans (exact normals, Cycles "
         "photos: sphere error 0.126 to 0.104 on the bunny, 0.134 to 0.081 on Spot; "
-        "blunted scans unchanged) for about 1.3 to 2 s more per run; off in Fast")
+        "blunted scans unchanged) for about 1.3 to 2 s more per run; on in Accurate")
 
     # texture (issue 16)
     texture: BoolProperty(

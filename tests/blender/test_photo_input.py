@@ -218,11 +218,13 @@ def test_silhouette_margin_shrinks_the_mask(tiny):
 
 
 def test_the_pixel_footprint_is_rendered_only_where_a_refit_reads_it(tiny):
-    """Pixel Footprint (on by default): 2 x 2 normals per pixel of the sphere, whose
-    mean is the pixel's own normal; not rendered when off, nor without a refit (the
-    Paper preset), since only the refits read it."""
+    """Pixel Footprint (on in Accurate): 2 x 2 normals per pixel of the sphere, whose
+    mean is the pixel's own normal; not rendered when off (Balanced's default), nor
+    without a refit (the Paper preset), since only the refits read it."""
     _entry(tiny, tiny["photo"])
     settings = tiny["scene"].brdf
+    assert not settings.pixel_footprint  # Balanced
+    settings.preset = "ACCURATE"
     assert settings.pixel_footprint and settings.keep_highlight_energy
     inputs, capture = gathering.gather_capture(tiny["scene"])
     fp, g = inputs[0].footprint_normal, inputs[0]

@@ -41,27 +41,18 @@ def test_choosing_a_preset_sets_its_values(scene, name):
 
 # a value other than every preset's, for each setting a preset names
 OFF_PRESET = {"samples": 33, "trials": 7, "subset_fraction": 0.25, "kl_path": "CYCLES",
-              "kl_samples": 64, "keep_highlight_energy": False, "pixel_footprint": None}
+              "kl_samples": 64, "keep_highlight_energy": False, "pixel_footprint": True}
 # the values no single setting can be off for every preset (kl_path: Fast's is FAST,
-# Accurate's CYCLES; keep_highlight_energy: Paper's is off, the others' on)
-SHARED_VALUES = ("kl_path", "keep_highlight_energy")
-# the booleans Fast and Balanced set apart (pixel_footprint: off in Fast, on in
-# Balanced): their off-preset value is the other one (None above)
-FLIPPED = ("pixel_footprint",)
-
-
-def _off_preset(key, name):
-    return (not PRESETS[name][key]) if key in FLIPPED else OFF_PRESET[key]
+# Accurate's CYCLES; keep_highlight_energy: Paper's is off, the others' on;
+# pixel_footprint: on in Accurate only)
+SHARED_VALUES = ("kl_path", "keep_highlight_energy", "pixel_footprint")
 
 
 def test_every_setting_a_preset_names_has_an_off_preset_value():
     keys = {k for values in PRESETS.values() for k in values}
     assert set(OFF_PRESET) == keys
     for values in PRESETS.values():
-        assert all(values[k] != v for k, v in OFF_PRESET.items()
-                   if k not in SHARED_VALUES + FLIPPED)
-    for key in FLIPPED:
-        assert {PRESETS["FAST"][key], PRESETS["BALANCED"][key]} == {False, True}
+        assert all(values[k] != v for k, v in OFF_PRESET.items() if k not in SHARED_VALUES)
     for key in SHARED_VALUES:
         assert OFF_PRESET[key] != PRESETS["FAST"][key]
         assert OFF_PRESET[key] != PRESETS["BALANCED"][key]
@@ -84,9 +75,9 @@ def test_editing_a_preset_value_makes_it_custom_and_choosing_again_restores(scen
 def test_each_preset_setting_edited_makes_it_custom(scene, key, name):
     s = scene.brdf
     s.preset = name
-    setattr(s, key, _off_preset(key, name))
+    setattr(s, key, OFF_PRESET[key])
     assert s.preset == "CUSTOM"
-    assert getattr(s, key) == pytest.approx(_off_preset(key, name))  # the edit is kept
+    assert getattr(s, key) == pytest.approx(OFF_PRESET[key])  # the edit itself is kept
 
 
 def test_setting_the_presets_own_value_keeps_it(scene):
