@@ -470,6 +470,8 @@ def cases() -> list[Case]:
             settings={"region_mode": "X"}),
         bad("use-curvature-string", se, 'use_curvature = "yes"', "use_curvature",
             settings={"use_curvature": "yes"}),
+        bad("pixel-footprint-string", se, 'pixel_footprint = "on"', "pixel_footprint",
+            settings={"pixel_footprint": "on"}),
         bad("unknown-setting", se, "sede = 4 (a typo of seed)", "sede",
             settings={"sede": 4}),
         # ------------------------------------------------------------- command line
@@ -490,6 +492,9 @@ def cases() -> list[Case]:
         Case("ctrl-c-second-photo", it, "Ctrl+C at G-buffers 2/3 of three photos", (130,),
              ("interrupted", "Ctrl+C"), job_text(photos=_three_photos()),
              interrupt="G-buffers 2/3"),
+        Case("ctrl-c-footprint", it, "Ctrl+C at the first G-buffers line, the pixel "
+             "footprint on (a second render per photo)", (130,), ("interrupted", "Ctrl+C"),
+             job_text(settings={"pixel_footprint": True}), interrupt="G-buffers 1/"),
         Case("ctrl-c-science", it, "Ctrl+C as the science starts (observing)", (130,),
              ("interrupted", "Ctrl+C"), good, interrupt="observing"),
         Case("ctrl-c-fitting", it, "Ctrl+C while the material is fitted", (130,),
