@@ -249,6 +249,21 @@ def test_the_pixel_footprint_is_rendered_only_where_a_refit_reads_it(tiny):
     assert gathering.gather_capture(tiny["scene"])[0][0].footprint_normal is None
 
 
+def test_a_run_with_the_pixel_footprint_reads_it_and_says_so(tiny):
+    """The whole run with Pixel Footprint on (Balanced otherwise): it finishes, the
+    report names the 4 points per pixel and the setting, and the table is finite."""
+    from brdf_reconstruct.core.brdf import merl
+
+    _entry(tiny, tiny["photo"])
+    tiny["scene"].brdf.pixel_footprint = True
+    assert bpy.ops.brdf.reconstruct() == {"FINISHED"}
+    report = json.loads((tiny["dir"] / "out" / "report.json").read_text())
+    assert report["settings"]["pixel_footprint"] is True
+    assert report["capture"]["photos"][0]["pixel_footprint"] == 4
+    table = merl.read(tiny["dir"] / "out" / "brdf_0.binary")
+    assert np.all(np.isfinite(table))
+
+
 # --- the sun from EXIF and GPS, in a scene whose up is not +Z ---------------------
 
 def test_sun_from_exif_time_and_gps_place(tiny):
