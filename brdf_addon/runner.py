@@ -22,7 +22,7 @@ import traceback
 
 import numpy as np
 
-from ..core.method import pipeline
+from ..core.method import pipeline, selection
 from . import gathering, outputs, photo_input, prefs, props
 
 # The basis build's progress line on the terminal and the status bar: at most this
@@ -300,10 +300,17 @@ class Run:
         self._cycles_kl.setdefault(r.region, []).append(float(kl.mean()))
         if len(self._cycles_kl[r.region]) == len(r.candidates):
             scores = np.array(self._cycles_kl[r.region])
-            winner = int(np.argmin(scores))
+            # the trials the photos' check excluded (pipeline: none in the paper's mode)
+            photo_check = {k: v for k, v in r.selection.items() if k.startswith("photo_")}
+            eligible = np.ones(len(scores), dtype=bool)
+            eligible[photo_check.get("photo_excluded", [])] = False
+            winner = selection.eligible_winner(scores, eligible)
             r.selection = {"path": "cycles", "cycles_samples": int(s.kl_samples),
                            "cycles_bounces": 0, "fast_kl": [float(k) for k in r.kl],
-                           "fast_winner": int(r.winner), "agree": winner == r.winner}
+                           "fast_winner": int(r.winner), "agree": winner == r.winner,
+                           **photo_check}
+            if not eligible[int(np.argmin(scores))]:
+                r.selection["kl_winner"] = int(np.argmin(scores))
             r.kl, r.winner = scores, winner
             if r.refine_inputs is None:
                 r.table = r.candidates[winner].astype(np.float64)

@@ -371,6 +371,10 @@ def run_region(
     result.status = "ok"
     result.kl = chosen.kl
     result.winner = int(chosen.winner)
+    if settings.refine != "none":  # the paper's mode chooses by the KL alone
+        eligible = selection.photo_eligible(chosen.rmse)
+        result.winner = selection.eligible_winner(chosen.kl, eligible)
+        result.selection = dict(result.selection, **_photo_check(chosen, eligible))
     method = settings.refine
     if method == "energy":  # kept only where the scan's normals are not pixel noise
         noise = refine.normal_noise([p.normal for p in inputs],
@@ -385,7 +389,7 @@ def run_region(
                 "energy was not refitted")
     if method == "none":
         t0 = time.perf_counter()
-        result.table = trials[chosen.winner][0].table  # the only full table expanded
+        result.table = trials[result.winner][0].table  # the only full table expanded
         result.timings["expansion"] = time.perf_counter() - t0
     result.candidates = CandidateTables([rec for rec, _ in trials])
     result.trials = [dict(rec.summary(), samples_used=int(len(used))) for rec, used in trials]
@@ -401,6 +405,17 @@ def run_region(
                      + ("(the photos' energy)" if method == "energy" else "to the photos"))
         refine_chosen(result, cancelled=cancelled)
     return result
+
+
+def _photo_check(chosen: selection.SelectionResult, eligible: np.ndarray) -> dict:
+    """The report's record of the photos' check on the trials (``selection.photo_eligible``):
+    each trial's relative RMSE against the photos, the trials it excluded and, where
+    it moved the choice, the KL's own winner."""
+    record = {"photo_rmse": [_finite_or_none(x) for x in chosen.rmse],
+              "photo_excluded": [int(i) for i in np.flatnonzero(~eligible)]}
+    if not eligible[chosen.winner]:
+        record["kl_winner"] = int(chosen.winner)
+    return record
 
 
 def refine_chosen(result: RegionResult, photo_consistent: float | None = None,

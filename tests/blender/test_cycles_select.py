@@ -1,6 +1,7 @@
 """The accurate (Cycles) selection path against the fast (numpy) one, on the tiny
 scene whose photo Cycles rendered with a known Lambertian material."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -63,3 +64,28 @@ def test_reconstruct_with_the_cycles_path_records_both(tiny):
     assert isinstance(sel["agree"], bool)
     table = merl.read(scene.brdf.results[0].table_path)
     assert np.nanmedian(table[:, :30, :30]) == pytest.approx(BS.ALBEDO / math.pi, rel=0.05)
+
+
+def test_the_cycles_path_keeps_the_photos_check(tiny, monkeypatch):
+    """A trial the photos' check excluded (selection.photo_eligible) is not chosen by the
+    Cycles KL either, even where it scores best; the report keeps the check and names
+    the Cycles KL's own winner. The fast selection is edited so that trial 0 misses
+    the photos 10 times more than trial 1, and the Cycles scores so that it wins."""
+    real = selection.select_by_kl
+
+    def trial_0_far(*args, **kwargs):
+        result = real(*args, **kwargs)
+        return dataclasses.replace(result, rmse=np.array([1.0, 0.1]))
+
+    monkeypatch.setattr(selection, "select_by_kl", trial_0_far)
+    scores = iter([0.01, 0.5])  # trial 0, then trial 1
+    monkeypatch.setattr(cycles_select, "score_candidate",
+                        lambda *args, **kwargs: np.array([next(scores)]))
+    scene = tiny["scene"]
+    scene.brdf.kl_path = "CYCLES"
+    report = runner.Run(scene, threaded=False, bake=False).run()
+    region = report["regions"][0]
+    sel = region["selection"]
+    assert sel["path"] == "cycles" and sel["photo_excluded"] == [0]
+    assert sel["kl_winner"] == 0 and region["winner"] == 1
+    assert region["refinement"]["trial"] == 1

@@ -329,3 +329,48 @@ def test_reconstructions_are_scored_at_the_photos_cells_like_their_tables(
     full = select_by_kl([r.expand() for r in recs], views)
     np.testing.assert_allclose(lazy.kl, full.kl, rtol=1e-9)
     assert lazy.winner == full.winner
+
+
+# ------------------------------------------------------------- the photos' check
+def test_rmse_is_the_renders_relative_rmse_against_the_photos(tables, gbuffer):
+    """SelectionResult.rmse from the kept renders, recomputed here."""
+    views = make_views(tables["truth_filled"], gbuffer)
+    candidates = [tables["truth_filled"], 1.5 * tables["truth_filled"], tables["other"]]
+    result = select_by_kl(candidates, views, keep_renders=True)
+    mask = gbuffer[2]
+    photo_sq = sum(np.sum(v.photo[mask] ** 2) for v in views)
+    for t in range(3):
+        miss = sum(np.sum((result.renders[t][i][mask] - v.photo[mask]) ** 2)
+                   for i, v in enumerate(views))
+        assert result.rmse[t] == pytest.approx(np.sqrt(miss / photo_sq), rel=1e-12)
+    assert result.rmse[0] == pytest.approx(0.0, abs=1e-12)
+    assert result.rmse[1] == pytest.approx(0.5, rel=1e-9)  # 1.5 x the photos everywhere
+
+
+def test_a_spike_far_above_the_photos_is_not_chosen_by_its_kl(tables, gbuffer):
+    """Against a table 30 % too bright, the truth with its peak 1e4 times higher
+    (theta_h bins 0 to 7, below 0.8 degrees): the spike moves a few pixels between
+    the histograms' bins (KL 0.002 against 0.43), so the KL prefers it, but it
+    misses the photos thousands of times more; the photos' check
+    (selection.photo_eligible) leaves the KL the 30 % table."""
+    truth = tables["truth_filled"]
+    views = make_views(truth, gbuffer)
+    spiked = truth.copy()
+    spiked[:, :8] *= 1e4
+    result = select_by_kl([1.3 * truth, spiked], views)
+    assert result.kl[1] < result.kl[0] and result.winner == 1  # the KL alone is fooled
+    assert result.rmse[0] == pytest.approx(0.3, rel=1e-9)
+    assert result.rmse[1] > selection.MAX_RMSE_RATIO * result.rmse[0]
+    eligible = selection.photo_eligible(result.rmse)
+    np.testing.assert_array_equal(eligible, [True, False])
+    assert selection.eligible_winner(result.kl, eligible) == 0
+
+
+def test_photo_eligible_reads_the_ratio_to_the_best_and_never_excludes_all():
+    rmse = [1.0, 4.9, 5.1, np.nan, np.inf]
+    np.testing.assert_array_equal(selection.photo_eligible(rmse), [1, 1, 0, 1, 0])
+    np.testing.assert_array_equal(selection.photo_eligible(rmse, ratio=6.0), [1, 1, 1, 1, 0])
+    assert selection.photo_eligible([np.nan, np.inf]).all()  # nothing to judge by
+    kl = [0.5, 0.4, 0.1, 0.6, 0.05]
+    assert selection.eligible_winner(kl, selection.photo_eligible(rmse)) == 1
+    assert selection.eligible_winner(kl, [False] * 5) == 4  # none eligible: the KL's
