@@ -304,13 +304,13 @@ class Run:
             photo_check = {k: v for k, v in r.selection.items() if k.startswith("photo_")}
             eligible = np.ones(len(scores), dtype=bool)
             eligible[photo_check.get("photo_excluded", [])] = False
-            winner = selection.eligible_winner(scores, eligible)
+            winner, kl_winner = selection.eligible_winner(scores, eligible), int(np.argmin(scores))
             r.selection = {"path": "cycles", "cycles_samples": int(s.kl_samples),
                            "cycles_bounces": 0, "fast_kl": [float(k) for k in r.kl],
                            "fast_winner": int(r.winner), "agree": winner == r.winner,
                            **photo_check}
-            if not eligible[int(np.argmin(scores))]:
-                r.selection["kl_winner"] = int(np.argmin(scores))
+            if winner != kl_winner:
+                r.selection["kl_winner"] = kl_winner
             r.kl, r.winner = scores, winner
             if r.refine_inputs is None:
                 r.table = r.candidates[winner].astype(np.float64)
