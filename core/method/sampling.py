@@ -33,6 +33,10 @@ The search follows the reference code for both criteria:
   axis (step 3, then 1) to another candidate, keep the best move, and stop once
   the relative improvement was <= 0.001 % three times in a row.
 
+The condition design's greedy step scores its 500 candidates exactly, but gives an
+eigendecomposition only to those a rank-one bound on the condition number cannot
+rule out (``_best_addition``): the same choice, several times faster.
+
 Unlike the reference, which searches the full grid, the candidates here are an
 arbitrary set of cells (in the product: the reliable pixels of the photos), so
 a move is only allowed onto another candidate. Each local search accepts at
@@ -169,9 +173,7 @@ def _condition_design(Qc, n_samples, k, rng, taken, neighbours) -> list:
         free = np.flatnonzero(~taken)
         trial = rng.choice(free, size=min(N_RANDOM, len(free)), replace=False)
         A = Qc[np.asarray(chosen), :p]
-        new = Qc[trial, :p]
-        cond = _gram_conditions((A.T @ A)[None] + new[:, :, None] * new[:, None, :])
-        best = int(trial[np.argmin(cond)])
+        best = int(trial[_best_addition(A.T @ A, Qc[trial, :p])])
         chosen.append(best)
         taken[best] = True
         _local_search(chosen, taken, neighbours, _ConditionMoves(Qc[:, :p], chosen))
@@ -312,6 +314,114 @@ def _gram_conditions(G: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.sqrt(lam[:, -1] / lam[:, 0])
     return np.where((lam[:, 0] > 0) & np.isfinite(cond), cond, np.inf)
+
+
+def _best_addition(G: np.ndarray, new: np.ndarray) -> int:
+    """Index of the row a of ``new`` (T, p) whose addition to the Gram matrix ``G``
+    (p, p) leaves the lowest condition number: exactly
+    ``argmin(_gram_conditions(G + a a^T))`` over the rows (the first of equal ones),
+    but only the rows that a bound cannot rule out are given an eigendecomposition.
+
+    The bound is that of a rank-one update (the secular equation, Golub 1973): with
+    ``G = V diag(d) V^T`` and ``z = V^T a``, the extreme eigenvalues of ``G + a a^T``
+    are roots of ``1 + sum z_i^2 / (d_i - mu)`` (:class:`_ConditionFloor`), which give
+    each row a lower bound on its condition number in O(p) per step. The rows whose
+    bound exceeds the exact condition of the most promising few cannot be the
+    argmin; the rest are scored as before, so the choice is the same to the last
+    bit (tested against scoring every row). On the demo capture (Balanced, 16 trials
+    of 20 samples, 500 rows per step) the 304 greedy steps took 0.13 s against 1.25
+    s (cProfile of the batch run; the demo's table the same to the bit)."""
+    T, p = new.shape
+    if T <= _PRUNE_FROM or p < 2:
+        return int(np.argmin(_gram_conditions(_added(G, new))))
+    d, V = np.linalg.eigh(G)
+    floor = _ConditionFloor(d, (new @ V) ** 2)
+    c_lo = floor.bound()
+    first = np.argsort(c_lo, kind="stable")[:_SCORED_FIRST]
+    best = np.min(_gram_conditions(_added(G, new[first])))  # an exact row's: >= the min
+    kept = np.flatnonzero(~(c_lo > best))  # a NaN bound keeps its row
+    for _ in range(_NEWTON_STEPS):
+        if len(kept) <= _SCORED_FIRST:
+            break
+        floor.narrow(kept)
+        kept = kept[~(floor.bound()[kept] > best)]
+    return int(kept[np.argmin(_gram_conditions(_added(G, new[kept])))])
+
+
+def _added(G: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The Gram matrices ``G + a a^T`` (T, p, p) for the rows a of ``rows`` (T, p)."""
+    return G[None] + rows[:, :, None] * rows[:, None, :]
+
+
+_PRUNE_FROM = 16  # fewer candidates than this are all scored
+_SCORED_FIRST = 4  # rows scored exactly to set the bar the others' bounds must beat
+_NEWTON_STEPS = 4  # tightening steps at most (each roughly doubles the digits)
+_SLACK = 64  # rounding allowance on the bound's eigenvalues, in p eps ||G + a a^T||
+
+
+class _ConditionFloor:
+    """Lower bounds on the condition numbers of ``diag(d) + z z^T`` for a stack of z.
+
+    d: (p,) ascending eigenvalues of G; z2: (T, p) the rows' squared components in
+    G's eigenvectors. The condition is ``sqrt(mu_max / mu_min)``; a bound needs
+    ``mu_max`` from below and ``mu_min`` from above, each tightened by Newton steps
+    that stay on their side of the root:
+
+    - ``mu_max = d_p + t``: ``f(t) = 1 - sum z_i^2 / (g_i + t)``, ``g_i = d_p - d_i``,
+      is increasing and concave for t > 0, so Newton from below stays below. It
+      starts from the Rayleigh quotients of the top eigenvector and of a.
+    - ``mu_min = d_1 + t`` in ``[d_1, d_2]``: ``h(t) = t (1 + sum_{i>1} z_i^2 / (e_i - t))
+      - z_1^2``, ``e_i = d_i - d_1``, is increasing and convex on [0, e_2), so Newton
+      from above stays above. It starts from h's tangent at 0, or d_2.
+
+    Rounding is allowed for by widening each eigenvalue by ``_SLACK p eps (|d|max +
+    |z|^2)``: G's eigendecomposition and eigvalsh are each exact for a matrix that
+    close (backward stable), far inside the allowance."""
+
+    def __init__(self, d: np.ndarray, z2: np.ndarray):
+        self.d, self.z2 = d, z2
+        self.g = np.maximum(d[-1] - d, 0.0)  # (p,), g_p = 0
+        self.e = np.maximum(d[1:] - d[0], 0.0)  # (p - 1,)
+        total = z2.sum(axis=1)
+        eps = np.finfo(np.float64).eps
+        self.slack = _SLACK * len(d) * eps * (np.max(np.abs(d)) + total)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rayleigh = total - (z2 * self.g).sum(axis=1) / total  # a's quotient - d_p
+        self.t_max = np.maximum(z2[:, -1], np.where(np.isfinite(rayleigh), rayleigh, 0.0))
+        all_rows = np.arange(len(z2))
+        h, dh = self._h_min(np.zeros(len(z2)), all_rows)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tangent = -h / dh
+        self.t_min = np.minimum(np.where(np.isfinite(tangent), tangent, self.e[0]), self.e[0])
+
+    def _h_min(self, t: np.ndarray, rows: np.ndarray):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gap = self.e - t[:, None]
+            q = self.z2[rows, 1:] / gap
+            psi, dpsi = q.sum(axis=1), (q / gap).sum(axis=1)
+        return t * (1.0 + psi) - self.z2[rows, 0], 1.0 + psi + t * dpsi
+
+    def narrow(self, rows: np.ndarray) -> None:
+        """One Newton step on both roots of the given rows (indices into the stack)."""
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            t = self.t_max[rows]
+            gap = self.g + t[:, None]
+            q = np.where(gap > 0, self.z2[rows] / gap, 0.0)
+            f, df = 1.0 - q.sum(axis=1), np.where(gap > 0, q / gap, 0.0).sum(axis=1)
+            step = t - f / df  # from below on a concave f: still below the root
+            self.t_max[rows] = np.where(np.isfinite(step) & (step > t), step, t)
+            t = self.t_min[rows]
+            h, dh = self._h_min(t, rows)
+            step = t - h / dh  # from above on a convex h: still above the root
+            self.t_min[rows] = np.where(np.isfinite(step) & (step < t) & (step >= 0.0),
+                                        step, t)
+
+    def bound(self) -> np.ndarray:
+        """(T,) lower bounds on the rows' condition numbers (inf where mu_min <= 0)."""
+        top = np.maximum(self.d[-1] + self.t_max - self.slack, 0.0)
+        bottom = self.d[0] + self.t_min + self.slack
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(bottom > 0, np.sqrt(top / bottom), np.inf)
 
 
 def _local_search(chosen: list, taken: np.ndarray, neighbours: dict, moves) -> None:

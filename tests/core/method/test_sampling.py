@@ -162,3 +162,66 @@ def test_risk_updates_do_not_drift(default_basis):
         chosen[j - 30] = j
         assert moves.current == pytest.approx(value, rel=1e-9)
     assert moves.current == pytest.approx(sampling.design_risk(B, rows[chosen], sigma), rel=1e-9)
+
+
+# ------------------------------------------------- the greedy step's pruned scoring
+def _stacks():
+    """Gram matrices and candidate rows the greedy step meets, and worse: G of a
+    square-short A (one zero eigenvalue, the greedy step's own case), of a full A, at
+    scales 1e-8 and 1e6, with duplicate, zero, parallel and near-singular rows."""
+    rng = np.random.default_rng(5)
+    for p in (2, 3, 8, 20, 40):
+        for scale in (1e-8, 1.0, 1e6):
+            for m in (p - 1, 2 * p):
+                A = rng.normal(size=(m, p)) * scale
+                new = rng.normal(size=(300, p)) * scale
+                new[10] = new[200]  # a tie: the first of the two must win
+                new[11] = 0.0
+                new[12] = A[0]  # parallel to a row already in
+                new[13] = A[0] * (1 + 1e-12)
+                new[14:40] *= rng.uniform(1e-6, 1e3, (26, 1))
+                yield A.T @ A, new
+    # an ill-conditioned design: rows nearly in one plane
+    base = rng.normal(size=(2, 12))
+    A = rng.normal(size=(11, 2)) @ base + 1e-7 * rng.normal(size=(11, 12))
+    yield A.T @ A, rng.normal(size=(500, 2)) @ base + 1e-5 * rng.normal(size=(500, 12))
+
+
+def test_the_greedy_steps_pruning_chooses_the_row_scoring_every_row_would():
+    """The condition design's greedy step bounds each candidate's condition by the
+    secular equation and scores only the rows the bound cannot rule out; its choice
+    must be the brute-force argmin, to the row (the first of equal ones), on every
+    stack above; and on the well-conditioned ones it must spare most rows their
+    eigendecomposition (the point of it)."""
+    scored = []
+
+    def counting(G):
+        scored.append(len(G))
+        return every_row(G)
+
+    every_row = sampling._gram_conditions
+    checked = offered = 0
+    for G, new in _stacks():
+        every = every_row(G[None] + new[:, :, None] * new[:, None, :])
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(sampling, "_gram_conditions", counting)
+            assert sampling._best_addition(G, new) == int(np.argmin(every))
+        checked += 1
+        offered += len(new) if checked <= 30 else 0
+        if checked == 30:
+            assert sum(scored) < 0.15 * offered, (sum(scored), offered)
+    assert checked == 31
+
+
+def test_the_condition_floor_is_below_every_rows_condition():
+    """The bound the pruning rests on: at its start and after each Newton step, no
+    row's lower bound exceeds its condition number from eigvalsh."""
+    for G, new in _stacks():
+        every = sampling._gram_conditions(G[None] + new[:, :, None] * new[:, None, :])
+        d, V = np.linalg.eigh(G)
+        floor = sampling._ConditionFloor(d, (new @ V) ** 2)
+        rows = np.arange(len(new))
+        for _ in range(6):
+            bound = floor.bound()
+            assert not np.any(bound > every * (1 + 1e-12)), np.max(bound / every)
+            floor.narrow(rows)
