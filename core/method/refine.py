@@ -294,6 +294,8 @@ def photo_consistent(
         r = np.maximum(over, 0.0) / ALBEDO_SIGMA
         if not jacobian:
             return r, None
+        if not np.any(over > 0.0):  # within the bound at every angle: no pull
+            return r, np.zeros((len(r), k))
         J = ((a_weights * (e / weight_a)) @ Qa) * ((over > 0.0) / ALBEDO_SIGMA)[:, None]
         return r, J
 
