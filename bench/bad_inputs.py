@@ -345,6 +345,10 @@ def cases() -> list[Case]:
              ("hot.exr",), job_text(photo={"image": "hot.exr"})),
         bad("photo-nan", ph, "three NaN pixels on the sphere", "nan.exr",
             photo={"image": "nan.exr"}),
+        bad("photo-inf", ph, "three +Inf pixels on the sphere", "inf.exr",
+            photo={"image": "inf.exr"}),
+        Case("photo-negative", ph, "three pixels of -0.5 on the sphere (a processed EXR)",
+             (0,), ("negative.exr",), job_text(photo={"image": "negative.exr"})),
         bad("photo-other-aspect", ph, "a 64 x 48 photo for the 48 x 48 camera", "wide.exr",
             photo={"image": "wide.exr"}),
         Case("photo-twice-size", ph, "a 96 x 96 photo (the 48 x 48 one, pixels doubled)",
@@ -474,6 +478,23 @@ def cases() -> list[Case]:
             settings={"pixel_footprint": "on"}),
         bad("unknown-setting", se, "sede = 4 (a typo of seed)", "sede",
             settings={"sede": 4}),
+        # the texture's settings (issue 16)
+        bad("texture-string", se, 'texture = "on"', "texture", settings={"texture": "on"}),
+        bad("texture-no-uv-map", se, "texture = true on a scan .ply without a UV map",
+            "uv_on_copy", top={"object": DROP, "mesh": "scan_no_uv.ply"},
+            settings={"texture": True}),
+        bad("texture-uv-map-unknown", se, 'texture on a scan given uv_map = "Nope"', "Nope",
+            settings={"texture": True, "uv_map": "Nope"}),
+        bad("texture-size-negative", se, "texture_size = -8", "texture_size",
+            settings={"texture_size": -8}),
+        bad("texture-size-huge", se, "texture_size = 1000000", "texture_size",
+            settings={"texture_size": 1000000}),
+        bad("material-model-enum", se, 'material_model = "PBR"', "material_model",
+            settings={"material_model": "PBR"}),
+        bad("export-gltf-string", se, 'export_gltf = "yes"', "export_gltf",
+            settings={"export_gltf": "yes"}),
+        bad("uv-on-copy-string", jf, 'uv_on_copy = "yes"', "uv_on_copy",
+            top={"uv_on_copy": "yes"}),
         # ------------------------------------------------------------- command line
         Case("argv-none", cl, "no arguments", (2,), argv=lambda f: [], quick=True),
         Case("argv-two", cl, "two job files", (2,),
@@ -552,11 +573,13 @@ def build_inputs(folder: pathlib.Path) -> dict:
     of ``testkit.blender_scene``), ``view0.exr`` (its 48 x 48 RGBA linear photo) and its
     copies ``view0_b.exr``, ``view0_c.exr``, ``other.exr``; ``opposite.exr`` (the same
     view rendered with the Sun turned to the opposite direction); ``black.exr`` (RGB 0),
-    ``hot.exr`` and ``nan.exr`` (three lit pixels set to 1e30 / NaN), ``tiny.exr``
+    ``hot.exr``, ``nan.exr``, ``inf.exr`` and ``negative.exr`` (three lit pixels
+    set to 1e30 / NaN / Inf / -0.5), ``tiny.exr``
     (1 x 1), ``wide.exr`` (64 x 48: 8 black columns each side), ``big.exr`` (96 x 96,
     each pixel doubled); ``photo8.png`` (8-bit sRGB); ``mask_none.png`` (48 x 48, all
-    excluded), ``mask_small.png`` (10 x 10); ``scan.ply`` (the scan, exported) and
-    ``points.ply`` (its vertices, no faces). Returns what was built and its seconds."""
+    excluded), ``mask_small.png`` (10 x 10); ``scan.ply`` (the scan, exported),
+    ``scan_no_uv.ply`` (the same without its UV map) and ``points.ply`` (its
+    vertices, no faces). Returns what was built and its seconds."""
     import bpy
     from mathutils import Vector
 
@@ -574,6 +597,8 @@ def build_inputs(folder: pathlib.Path) -> dict:
     bpy.context.view_layer.objects.active = scan
     bpy.ops.wm.ply_export(filepath=str(folder / "scan.ply"), export_selected_objects=True,
                           export_normals=True, apply_modifiers=True)
+    bpy.ops.wm.ply_export(filepath=str(folder / "scan_no_uv.ply"), export_selected_objects=True,
+                          export_normals=True, export_uv=False, apply_modifiers=True)
     vertices = np.array([tuple(v.co) for v in scan.data.vertices])
     _write_points_ply(folder / "points.ply", vertices)
     bpy.ops.wm.save_as_mainfile(filepath=str(folder / "scene.blend"))
@@ -586,7 +611,8 @@ def build_inputs(folder: pathlib.Path) -> dict:
     black = photo.copy()
     black[..., :3] = 0.0
     _write_image(folder / "black.exr", black)
-    for name, value in (("hot.exr", 1e30), ("nan.exr", np.nan)):
+    for name, value in (("hot.exr", 1e30), ("nan.exr", np.nan), ("inf.exr", np.inf),
+                        ("negative.exr", -0.5)):
         changed = photo.copy().reshape(-1, photo.shape[-1])
         changed[picks, :3] = value
         _write_image(folder / name, changed.reshape(photo.shape))

@@ -22,7 +22,8 @@ For each entry of ``scene.brdf.photos`` :func:`gather_photo`:
    the scan's silhouette is the mask, shrunk by the photo's silhouette margin;
    refuses a photo black over the scan or brighter where the G-buffer says
    shadow than where it says light, and notes one that is partly so
-   (``photo_checks.light_consistency``; the photo's ``notes``);
+   (``photo_checks.light_consistency``) or holds values below 0 on the scan beyond
+   a black level's noise (``photo_checks.negative_note``; the photo's ``notes``);
 6. applies the exposure scale (user, or EXIF shutter/aperture/ISO through
    ``core.capture.exif``; :func:`exposure_plan` decides for all photos at once);
 7. gathers the irradiance reference (grey card or diffuse region of the scan),
@@ -166,7 +167,9 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     consistency = photo_checks.light_consistency(radiance, cosine, g.visibility, g.region,
                                                  usable)
     report["light_check"] = consistency.as_dict()
-    notes = photo_checks.check_light(consistency, photo.name)
+    negative = photo_checks.negative_note(radiance, photo.name, usable)
+    notes = ([negative] if negative else []) + photo_checks.check_light(consistency,
+                                                                        photo.name)
     if notes:
         report["notes"] = notes
     if exposure_scale != 1.0:

@@ -45,6 +45,10 @@ The thresholds, and why:
   (a polished metal, dark off its highlight) and is not judged. More than a
   quarter (``DARK_NOTE_FRACTION``) dark is a note, never a refusal: a user could
   mean it (a dark pattern on a region taken for one BRDF).
+- Negative values (:func:`negative_note`): a camera's noise about its black level
+  leaves pixels a little below 0, and they are read as they are; one below
+  ``NEGATIVE_NOTE`` = 1/4 of the median magnitude of the scan's pixels is more than
+  such noise (a wrong black level, a processing step): a note, not a refusal.
 - Statistics over fewer than ``MIN_PIXELS`` = 16 pixels say nothing.
 """
 
@@ -65,6 +69,7 @@ NOTE_RATIO = 0.5
 WELL_LIT_COSINE = 0.5
 DARK_WHERE_LIT = 0.1
 DARK_NOTE_FRACTION = 0.25
+NEGATIVE_NOTE = 0.25
 
 
 def check_photo_size(name: str, size, camera_name: str, camera_size, source: str) -> None:
@@ -129,6 +134,37 @@ def check_range(radiance: np.ndarray, name: str, mask: np.ndarray | None = None)
                          f"times its median value {level:.3g} (up to "
                          f"{magnitude[beyond].max():.3g}), which no camera records: fix "
                          "the file or mask them out")
+
+
+def negative_note(radiance: np.ndarray, name: str, mask: np.ndarray | None = None
+                  ) -> str | None:
+    """A note (one sentence) when a finite pixel (inside ``mask``) has a channel below
+    ``-NEGATIVE_NOTE`` times the median magnitude there, None otherwise.
+
+    No light gives negative radiance, but a camera's noise about its black level
+    does (a raw file with the black level taken off, a denoised EXR), a little below
+    0, and it averages out: so negative values are read as they are. One as large as
+    a good share of the scan's typical pixel is not that noise (a wrong black level,
+    a processing step), so the user is told.
+
+    radiance: (H, W, 3) linear radiance (NaN/Inf ignored); mask: optional (H, W)
+    bool, the scan's pixels the run uses.
+    """
+    values = _checked(radiance, mask)
+    magnitude = np.abs(values).max(axis=-1, initial=0.0)
+    nonzero = magnitude[magnitude > 0]
+    if nonzero.size == 0:
+        return None
+    level = float(np.median(nonzero))
+    below = np.any(values < -NEGATIVE_NOTE * level, axis=-1)
+    count = int(np.count_nonzero(below))
+    if not count:
+        return None
+    pixels = "pixel has" if count == 1 else "pixels have"
+    return (f"photo {name}: {count} {pixels} a channel below 0 by more than "
+            f"noise about a black level would (down to {values[below].min():.3g}, the "
+            f"median pixel {level:.3g}), which no light gives; they are read as they are, "
+            "but check the file's black level and processing")
 
 
 def check_scan_not_black(radiance: np.ndarray, name: str, scan: np.ndarray) -> None:

@@ -120,6 +120,26 @@ def test_a_few_pixels_of_1e30_are_refused_with_their_count():
     photo_checks.check_range(photo, "p.exr", mask)  # masked out: nothing to say
 
 
+def test_negative_values_beyond_a_black_levels_noise_are_a_note():
+    """A raw photo with its black level taken off holds noise a little below 0: read,
+    no note. Three pixels of -0.5 among values about 0.1 are no such noise: a note
+    naming the photo, the count and the lowest value; masked out, nothing to say."""
+    rng = np.random.default_rng(4)
+    photo = rng.uniform(0.05, 0.2, (16, 16, 3))
+    photo[:4] = rng.normal(0.0, 0.005, (4, 16, 3))  # a dark band: noise about black
+    assert photo.min() < 0.0
+    assert photo_checks.negative_note(photo, "p.exr") is None
+    photo[8, 8] = photo[9, 2, 1] = photo[14, 14, 2] = -0.5
+    note = photo_checks.negative_note(photo, "p.exr")
+    assert note.startswith("photo p.exr: 3 pixels have a channel below 0 by more than "
+                           "noise about a black level would (down to -0.5, the median "
+                           "pixel 0.1"), note
+    mask = np.ones((16, 16), bool)
+    mask[8, 8] = mask[9, 2] = mask[14, 14] = False
+    assert photo_checks.negative_note(photo, "p.exr", mask) is None
+    assert photo_checks.negative_note(np.zeros((4, 4, 3)), "p.exr") is None  # all black
+
+
 def test_a_sun_glint_twenty_stops_above_the_rest_is_radiance():
     """The sun's mirror image on a glossy object is about 2^20 times the median of
     what is lit around it: a real photo, kept."""
