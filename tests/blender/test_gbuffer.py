@@ -188,6 +188,27 @@ def test_sphere_lens_shift():
     assert rows.mean() + 0.5 == pytest.approx(36 - 0.1 * 96, abs=1.0)
 
 
+def test_a_scan_with_its_faces_turned_inward_gives_the_same_gbuffers():
+    """Photogrammetry meshes often come with their faces wound the wrong way (normals
+    pointing into the object). What the camera sees is the same surface, so the
+    G-buffers must be those of the outward mesh: normals toward the camera, the same
+    points, the same light and shadow."""
+    cam = _camera((0.3, -6.0, 2.1), CENTER)
+    light = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    outward = gbuffer.render_gbuffers(_sphere(), cam, light)
+    inward = _sphere()
+    inward.data.flip_normals()
+    inward.data.update()
+    assert np.mean(np.array([p.normal for p in inward.data.polygons])
+                   * np.array([p.center for p in inward.data.polygons])) < 0  # inward
+    g = gbuffer.render_gbuffers(inward, cam, light)
+    assert np.array_equal(g.mask, outward.mask)
+    m = g.mask
+    assert _angle_deg(g.normal[m], outward.normal[m]).max() < 0.01
+    assert np.abs(g.position[m] - outward.position[m]).max() < 1e-5
+    assert np.abs(g.visibility[m] - outward.visibility[m]).max() < 0.01
+
+
 def test_visibility_cast_shadow():
     # One object: a 4 x 4 ground plane and a unit box on it; light 45 degrees
     # above the +x horizon, so the box's shadow covers x in [-1.5, -0.5], |y| < 0.5.
