@@ -54,10 +54,10 @@ def views_of(count: int) -> list[int]:
 
 
 def captures(obj: str) -> dict:
-    """{"degraded": arrays, "exact": arrays}: the object's 16-view capture."""
-    degraded = capture_arrays.gbuffers(n_views=N_VIEWS, lit_views=tuple(range(N_VIEWS)),
-                                       mesh=photo_bench.mesh_of(obj))
-    return {"degraded": degraded, "exact": photo_bench.exact_scan(degraded)}
+    """{"degraded": arrays, "exact": arrays}: the object's 16-view capture
+    (``photo_bench.scans`` with every camera lit)."""
+    both = photo_bench.scans(obj, n_views=N_VIEWS, lit_views=tuple(range(N_VIEWS)))
+    return {"degraded": both["scan"], "exact": both["exact"]}
 
 
 def run(objects, materials, seeds) -> list[dict]:

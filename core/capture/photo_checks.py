@@ -103,6 +103,14 @@ def _checked(radiance: np.ndarray, mask) -> np.ndarray:
     return values[keep]
 
 
+def _magnitudes(values: np.ndarray) -> tuple[np.ndarray, float | None]:
+    """Each pixel's largest channel magnitude (N,) of ``values`` (N, 3), and their
+    median over the non-zero ones (None where every pixel is 0): a photo's level."""
+    magnitude = np.abs(values).max(axis=-1, initial=0.0)
+    nonzero = magnitude[magnitude > 0]
+    return magnitude, (float(np.median(nonzero)) if nonzero.size else None)
+
+
 def check_not_black(radiance: np.ndarray, name: str, mask: np.ndarray | None = None) -> None:
     """ValueError (one sentence) when no finite pixel (inside ``mask``) is above 0.
 
@@ -121,11 +129,9 @@ def check_range(radiance: np.ndarray, name: str, mask: np.ndarray | None = None)
     radiance: (H, W, 3) linear radiance (NaN/Inf are ignored here: see
     ``photo_io.check_finite``); mask: optional (H, W) bool.
     """
-    magnitude = np.abs(_checked(radiance, mask)).max(axis=-1, initial=0.0)
-    nonzero = magnitude[magnitude > 0]
-    if nonzero.size == 0:
+    magnitude, level = _magnitudes(_checked(radiance, mask))
+    if level is None:
         return
-    level = float(np.median(nonzero))
     beyond = magnitude > MAX_RANGE * level
     count = int(np.count_nonzero(beyond))
     if count:
@@ -151,11 +157,9 @@ def negative_note(radiance: np.ndarray, name: str, mask: np.ndarray | None = Non
     bool, the scan's pixels the run uses.
     """
     values = _checked(radiance, mask)
-    magnitude = np.abs(values).max(axis=-1, initial=0.0)
-    nonzero = magnitude[magnitude > 0]
-    if nonzero.size == 0:
+    level = _magnitudes(values)[1]
+    if level is None:
         return None
-    level = float(np.median(nonzero))
     below = np.any(values < -NEGATIVE_NOTE * level, axis=-1)
     count = int(np.count_nonzero(below))
     if not count:
