@@ -171,6 +171,43 @@ def test_nnls_solves_shared_systems_once_with_the_same_result():
         np.testing.assert_array_equal(x, y)
 
 
+def test_nnls_from_gram_agrees_with_scipys_nnls_of_the_columns():
+    """The exhaustive active-set NNLS over a batch of normal equations gives what an
+    independent NNLS (scipy's Lawson-Hanson) gives on the columns themselves, on
+    well- and ill-conditioned columns (near-parallel pairs, scales 1e-3 to 1e6; far
+    below that the normal equations' absolute ridge, 1e-12, moves the minimum)."""
+    from scipy.optimize import nnls
+
+    rng = np.random.default_rng(11)
+    A, y = [], []
+    for i in range(120):
+        a = rng.normal(size=(40, 5)) * np.exp(rng.uniform(-1, 1, 5))
+        if i % 3 == 1:  # a near-parallel pair of columns
+            a[:, 4] = a[:, 3] * (1 + 1e-4) + 1e-4 * rng.normal(size=40)
+        a *= 10.0 ** rng.integers(-3, 7)
+        A.append(a)
+        y.append(a @ rng.normal(size=5) + 0.1 * np.abs(a).mean() * rng.normal(size=40))
+    A, y = np.array(A), np.array(y)
+    beta, val = fitting._nnls_from_gram(np.einsum("bni,bnj->bij", A, A),
+                                        np.einsum("bni,bn->bi", A, y))
+    for a, t, bt, v in zip(A, y, beta, val, strict=True):
+        ref, res = nnls(a, t)
+        # the same minimum of |A beta - y|^2 (= v + |y|^2), relative to |y|^2
+        assert abs((v + t @ t) - res**2) <= 1e-7 * (t @ t)
+        assert np.all(bt >= 0.0) and abs(np.sum((a @ bt - t) ** 2) - res**2) <= 1e-7 * (t @ t)
+
+
+def test_nnls_skips_a_singular_active_set_instead_of_raising():
+    """Two equal columns so large that the ridge vanishes in rounding: their joint
+    system is singular. It is no candidate (LAPACK's solve raised LinAlgError on it);
+    each column alone explains the target exactly."""
+    gram = np.full((1, 2, 2), 1e20)
+    rhs = np.full((1, 2), 1e20)
+    beta, val = fitting._nnls_from_gram(gram, rhs)
+    np.testing.assert_array_equal(beta, [[1.0, 0.0]])
+    assert val[0] == -1e20 and np.all(np.isfinite(beta))
+
+
 def test_clean_table_copies_unless_told_it_may_not(plastic_table):
     copy = fitting.clean_table(plastic_table)
     assert not np.may_share_memory(copy, plastic_table)
