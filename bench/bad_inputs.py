@@ -310,6 +310,12 @@ def cases() -> list[Case]:
             top={"object": DROP, "mesh": "text.ply"}, setup=_write("text.ply", TEXT)),
         bad("mesh-no-faces", pa, "a .ply of the scan's vertices without faces", "points.ply",
             top={"object": DROP, "mesh": "points.ply"}),
+        bad("mesh-nan-vertex", pa, "the scan as a .ply with one vertex at NaN (Blender would "
+            "import it as 0)", "nan.ply", top={"object": DROP, "mesh": "nan.ply"}),
+        bad("mesh-collapsed", pa, "the scan as a .ply with every vertex at one point",
+            "collapsed", top={"object": DROP, "mesh": "collapsed.ply"}),
+        bad("mesh-far", pa, "the scan 1000 units off, in no camera's view", "view0.exr",
+            top={"object": DROP, "mesh": "far.ply"}),
         bad("mesh-suffix", pa, "a mesh file of an unsupported kind (scan.fbx)", "scan.fbx",
             top={"object": DROP, "mesh": "scan.fbx"}, setup=_write("scan.fbx", TEXT)),
         Case("mesh-good", pa, "control: the scan as a .ply beside the .blend", (0,), (),
@@ -351,6 +357,8 @@ def cases() -> list[Case]:
              (0,), ("negative.exr",), job_text(photo={"image": "negative.exr"})),
         bad("photo-other-aspect", ph, "a 64 x 48 photo for the 48 x 48 camera", "wide.exr",
             photo={"image": "wide.exr"}),
+        Case("photo-gray", ph, "control: a one-channel (Y) EXR of the photo's luminance",
+             (0,), (), job_text(photo={"image": "gray.exr"})),
         Case("photo-twice-size", ph, "a 96 x 96 photo (the 48 x 48 one, pixels doubled)",
              (0,), ("big.exr",), job_text(photo={"image": "big.exr"})),
         Case("photo-lit-where-shadow", ph, "a photo rendered with the opposite light", (1, 0),
@@ -578,8 +586,10 @@ def build_inputs(folder: pathlib.Path) -> dict:
     (1 x 1), ``wide.exr`` (64 x 48: 8 black columns each side), ``big.exr`` (96 x 96,
     each pixel doubled); ``photo8.png`` (8-bit sRGB); ``mask_none.png`` (48 x 48, all
     excluded), ``mask_small.png`` (10 x 10); ``scan.ply`` (the scan, exported),
-    ``scan_no_uv.ply`` (the same without its UV map) and ``points.ply`` (its
-    vertices, no faces). Returns what was built and its seconds."""
+    ``scan_no_uv.ply`` (the same without its UV map), ``points.ply`` (its
+    vertices, no faces), ``nan.ply`` (its first vertex at NaN), ``collapsed.ply``
+    (every vertex at their mean) and ``far.ply`` (moved 1000 units along x);
+    ``gray.exr`` (one channel: the photo's luminance). Returns what was built and its seconds."""
     import bpy
     from mathutils import Vector
 
@@ -601,6 +611,14 @@ def build_inputs(folder: pathlib.Path) -> dict:
                           export_normals=True, export_uv=False, apply_modifiers=True)
     vertices = np.array([tuple(v.co) for v in scan.data.vertices])
     _write_points_ply(folder / "points.ply", vertices)
+    for name, changed in (("nan.ply", np.where(np.arange(len(vertices))[:, None] == 0,
+                                               np.nan, vertices)),
+                          ("collapsed.ply", np.zeros_like(vertices) + vertices.mean(axis=0)),
+                          ("far.ply", vertices + [1000.0, 0.0, 0.0])):
+        scan.data.vertices.foreach_set("co", changed.astype(np.float32).ravel())
+        bpy.ops.wm.ply_export(filepath=str(folder / name), export_selected_objects=True,
+                              export_normals=True, apply_modifiers=True)
+    scan.data.vertices.foreach_set("co", vertices.astype(np.float32).ravel())
     bpy.ops.wm.save_as_mainfile(filepath=str(folder / "scene.blend"))
 
     photo = _read_exr(folder / "view0.exr")  # (48, 48, 4) RGBA
@@ -623,6 +641,8 @@ def build_inputs(folder: pathlib.Path) -> dict:
     wide[:, 8:56] = photo
     _write_image(folder / "wide.exr", wide)
     _write_image(folder / "big.exr", np.repeat(np.repeat(photo, 2, axis=0), 2, axis=1))
+    luminance = photo[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    _write_image(folder / "gray.exr", np.ascontiguousarray(luminance[..., None]))
     rgb = np.clip(photo[..., :3], 0.0, 1.0)
     srgb = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * np.power(rgb, 1 / 2.4) - 0.055)
     _write_image(folder / "photo8.png", np.round(srgb * 255).astype(np.uint8))

@@ -44,6 +44,7 @@ def check_scene(scene) -> None:
         raise ValueError("choose the scan object (a mesh) in the BRDF panel")
     if obj.type != "MESH" or len(obj.data.polygons) == 0:
         raise ValueError(f"the scan {obj.name} is a mesh without faces")
+    _check_scan_geometry(obj)
     if settings.texture:
         from . import gbuffer
 
@@ -62,6 +63,30 @@ def check_scene(scene) -> None:
             raise ValueError(f"photo {photo.name} has no camera: pick the camera it was "
                              "taken from")
     _check_output_folder(scene)
+
+
+def _check_scan_geometry(obj) -> None:
+    """One-sentence ValueError for a scan no photo can see as a surface: vertices with
+    NaN or Inf coordinates (a broken export; Cycles drops their faces silently), no
+    face with an area (every face collapsed to a line or a point), or a transform
+    that is not finite or scales the scan to nothing. The mesh is only read."""
+    mesh = obj.data
+    co = np.empty(3 * len(mesh.vertices), dtype=np.float64)
+    mesh.vertices.foreach_get("co", co)
+    bad = int(np.count_nonzero(~np.all(np.isfinite(co.reshape(-1, 3)), axis=1)))
+    if bad:
+        raise ValueError(f"the scan {obj.name} has {bad} vertex{'es' if bad > 1 else ''} "
+                         "with NaN or Inf coordinates: fix or delete them, or export the "
+                         "scan again")
+    area = np.empty(len(mesh.polygons), dtype=np.float64)
+    mesh.polygons.foreach_get("area", area)
+    if not np.any(area > 0.0):
+        raise ValueError(f"the scan {obj.name} has no face with an area (every face is "
+                         "collapsed to a line or a point)")
+    matrix = np.array(obj.matrix_world, dtype=np.float64)
+    if not np.all(np.isfinite(matrix)) or abs(np.linalg.det(matrix[:3, :3])) == 0.0:
+        raise ValueError(f"the scan {obj.name}'s transform scales it to nothing or is not "
+                         "finite: check its scale in the Object properties")
 
 
 def _check_output_folder(scene) -> None:

@@ -19,6 +19,13 @@ What each check accepts:
 - ``.obj``: at least one vertex line (``v x y z``) and one face line (``f ...``).
 - ``.stl``: binary (84 bytes of header and count, then 50 bytes per triangle,
   the count > 0) or ASCII (``solid`` first, at least one ``facet``).
+
+Every format: no vertex coordinate or normal that is NaN or Inf (Blender's PLY,
+OBJ and STL importers read such a number as 0: a spike to the origin no photo
+can show). Binary PLY vertices
+(when no list comes before them) and binary STL triangles are read as numpy
+rows from the mapped file; ASCII files are searched for a ``nan`` or ``inf``
+word in their vertex data.
 """
 
 from __future__ import annotations
@@ -27,6 +34,8 @@ import mmap
 import pathlib
 import re
 
+import numpy as np
+
 BLEND_MAGICS = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")  # plain, zstd, gzip
 PLY_FORMATS = ("ascii", "binary_little_endian", "binary_big_endian")
 PLY_FACE_ELEMENTS = ("face", "tristrips")  # both become faces in Blender's importer
@@ -34,6 +43,14 @@ PLY_FACE_ELEMENTS = ("face", "tristrips")  # both become faces in Blender's impo
 PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2,
              "int16": 2, "uint16": 2, "int": 4, "uint": 4, "int32": 4, "uint32": 4,
              "float": 4, "float32": 4, "double": 8, "float64": 8}
+# numpy codes of the PLY scalar types
+PLY_NUMPY = {"char": "i1", "uchar": "u1", "int8": "i1", "uint8": "u1", "short": "i2",
+             "ushort": "u2", "int16": "i2", "uint16": "u2", "int": "i4", "uint": "u4",
+             "int32": "i4", "uint32": "u4", "float": "f4", "float32": "f4",
+             "double": "f8", "float64": "f8"}
+PLY_CHECKED = ("x", "y", "z", "nx", "ny", "nz")  # vertex properties that must be finite
+# a "nan" or "inf" word (any case, any sign) in an ASCII file's numbers
+NONFINITE_WORD = rb"(?<![A-Za-z_])[-+]?(?:nan|inf)"
 PLY_HEADER_MAX = 1 << 16  # a PLY header longer than 64 KiB is taken as no header
 STL_HEADER = 84  # 80 bytes of header, a uint32 triangle count
 STL_TRIANGLE = 50  # normal, three vertices (12 float32) and a uint16
@@ -85,6 +102,12 @@ def _no_faces(field: str, path: pathlib.Path) -> ValueError:
                       "give the scan as a mesh with faces")
 
 
+def _nonfinite(field: str, path: pathlib.Path) -> ValueError:
+    return ValueError(f"{field} {path.name} has vertices with NaN or Inf coordinates or "
+                      "normals (Blender would import them as zeros): fix or delete them, "
+                      "or export the scan again")
+
+
 def _check_ply(path: pathlib.Path, field: str) -> None:
     with open(path, "rb") as f:
         head = f.read(PLY_HEADER_MAX)
@@ -96,31 +119,64 @@ def _check_ply(path: pathlib.Path, field: str) -> None:
         raise ValueError(f"{field} {path.name} is not a complete PLY file (no end_header "
                          "line): export the scan again")
     header = head[:end.start()].decode("ascii", errors="replace").splitlines()[1:]
-    fmt, elements = None, []  # elements: [name, count, bytes per row at least]
+    fmt, elements = None, []  # elements: [name, count, bytes per row at least, props]
     for words in (line.split() for line in header):
         if not words or words[0] in ("comment", "obj_info"):
             continue
         if words[0] == "format" and len(words) >= 2:
             fmt = words[1]
         elif words[0] == "element" and len(words) == 3 and words[2].isdigit():
-            elements.append([words[1], int(words[2]), 0])
+            elements.append([words[1], int(words[2]), 0, []])
         elif words[0] == "property" and elements and len(words) >= 3:
             scalar = words[2] if words[1] == "list" else words[1]  # a list: its count
             if scalar not in PLY_SIZES:
                 raise _bad_ply(path, field, f"unknown property type {scalar}")
             elements[-1][2] += PLY_SIZES[scalar]
+            # (name, numpy code), the name None for a list (rows of varying size)
+            elements[-1][3].append((words[-1] if words[1] != "list" else None,
+                                    PLY_NUMPY[scalar]))
         else:
             raise _bad_ply(path, field, f"unreadable header line {' '.join(words)!r}")
     if fmt not in PLY_FORMATS:
         raise _bad_ply(path, field, f"unknown format {fmt}")
-    if sum(count for name, count, _ in elements if name in PLY_FACE_ELEMENTS) == 0:
+    if sum(count for name, count, _, _ in elements if name in PLY_FACE_ELEMENTS) == 0:
         raise _no_faces(field, path)
     if fmt != "ascii":
-        need = end.end() + sum(count * row for _, count, row in elements)
+        need = end.end() + sum(count * row for _, count, row, _ in elements)
         size = path.stat().st_size
         if size < need:
             raise ValueError(f"{field} {path.name} is truncated ({size} bytes, its header "
                              f"needs at least {need}): export the scan again")
+    _check_ply_vertices(path, field, fmt, end.end(), elements)
+
+
+def _check_ply_vertices(path: pathlib.Path, field: str, fmt: str, start: int,
+                        elements: list) -> None:
+    """ValueError if a PLY vertex's position or normal (PLY_CHECKED) is NaN or Inf.
+    Binary: the vertex rows read as numpy records (when only fixed-size rows come
+    before them; a list before the vertices is not followed). ASCII: a nan or inf
+    word anywhere after the header (the faces' indices are integers, so such a word
+    is a vertex property)."""
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        if fmt == "ascii":
+            if re.compile(NONFINITE_WORD, re.IGNORECASE).search(data, start) is not None:
+                raise _nonfinite(field, path)
+            return
+        order = "<" if fmt == "binary_little_endian" else ">"
+        offset = start
+        for name, count, row, props in elements:
+            if any(p is None for p, _ in props):  # a list: rows of varying size
+                return
+            if name == "vertex":
+                rows = np.frombuffer(data, count=count, offset=offset, dtype=np.dtype(
+                    [(f"p{i}", order + code) for i, (_, code) in enumerate(props)]))
+                axes = [f"p{i}" for i, (p, _) in enumerate(props) if p in PLY_CHECKED]
+                bad = sum(int(np.count_nonzero(~np.isfinite(rows[a]))) for a in axes)
+                del rows  # no view may outlive the mapping
+                if bad:
+                    raise _nonfinite(field, path)
+                return
+            offset += count * row
 
 
 def _bad_ply(path: pathlib.Path, field: str, what: str) -> ValueError:
@@ -135,6 +191,9 @@ def _check_obj(path: pathlib.Path, field: str) -> None:
                              "lines): export the scan again as OBJ")
         if re.search(rb"^[ \t]*f[ \t]", data, re.MULTILINE) is None:
             raise _no_faces(field, path)
+        if re.search(rb"^[ \t]*v[ \t][^\n]*" + NONFINITE_WORD, data,
+                     re.MULTILINE | re.IGNORECASE) is not None:
+            raise _nonfinite(field, path)
 
 
 def _check_stl(path: pathlib.Path, field: str) -> None:
@@ -145,6 +204,12 @@ def _check_stl(path: pathlib.Path, field: str) -> None:
             if size == STL_HEADER + STL_TRIANGLE * count:  # binary, as Blender decides
                 if count == 0:
                     raise _no_faces(field, path)
+                rows = np.frombuffer(data, count=count, offset=STL_HEADER, dtype=np.dtype(
+                    [("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")]))
+                finite = bool(np.all(np.isfinite(rows["v"])))
+                del rows  # no view may outlive the mapping
+                if not finite:
+                    raise _nonfinite(field, path)
                 return
         if re.match(rb"\s*solid", data) is None:
             raise ValueError(f"{field} {path.name} is not an STL file (neither binary STL "
@@ -152,3 +217,5 @@ def _check_stl(path: pathlib.Path, field: str) -> None:
                              "solid): export the scan again as STL")
         if data.find(b"facet") < 0:
             raise _no_faces(field, path)
+        if re.search(rb"vertex[^\n]*" + NONFINITE_WORD, data, re.IGNORECASE) is not None:
+            raise _nonfinite(field, path)

@@ -224,6 +224,38 @@ def test_mesh_without_faces_is_one_clear_error(tiny):
         gathering.check_scene(tiny["scene"])
 
 
+@pytest.mark.parametrize("damage, message", [
+    ("nan", "has 1 vertex with NaN or Inf coordinates"),
+    ("collapsed", "has no face with an area"),
+    ("scale", "transform scales it to nothing"),
+])
+def test_a_scan_no_photo_can_see_as_a_surface_is_one_clear_error(tiny, damage, message):
+    """A vertex at NaN (Cycles drops its faces without a word), every face collapsed
+    to a point, or a scale of 0: refused before any work, the mesh unchanged."""
+    _add_photo(tiny)
+    scan = tiny["scene"].brdf.target
+    mesh = scan.data.copy()
+    obj = bpy.data.objects.new("damaged", mesh)
+    obj.matrix_world = scan.matrix_world
+    tiny["scene"].collection.objects.link(obj)
+    if damage == "nan":
+        mesh.vertices[0].co = (float("nan"), 0.0, 0.0)
+    elif damage == "collapsed":
+        for v in mesh.vertices:
+            v.co = (0.25, 0.5, 0.0)
+    else:
+        obj.scale = (0.0, 0.0, 0.0)
+        bpy.context.view_layer.update()
+    before = np.array([tuple(v.co) for v in mesh.vertices])
+    tiny["scene"].brdf.target = obj
+    with pytest.raises(ValueError, match=message) as error:
+        gathering.check_scene(tiny["scene"])
+    assert "\n" not in str(error.value)
+    np.testing.assert_array_equal(np.array([tuple(v.co) for v in mesh.vertices]), before)
+    tiny["scene"].brdf.target = scan
+    gathering.check_scene(tiny["scene"])  # the undamaged scan passes
+
+
 def test_cancel_leaves_the_scene_unchanged(tiny):
     _add_photo(tiny)
     before = {k: len(getattr(bpy.data, k)) for k in ("materials", "images", "node_groups",

@@ -24,11 +24,23 @@ def _ply_header(fmt: str, n_vertices: int, n_faces: int | None, face="face") -> 
     return ("\n".join(lines + ["end_header"]) + "\n").encode()
 
 
-def binary_ply() -> bytes:
-    """One triangle, binary little-endian: 3 x 12 bytes of vertices, then the face
-    as a uchar count and three int32 indices."""
-    face = np.uint8(3).tobytes() + np.array([0, 1, 2], "<i4").tobytes()
-    return _ply_header("binary_little_endian", 3, 1) + TRIANGLE.tobytes() + face
+def binary_ply(vertex=None, normal=None, order="<") -> bytes:
+    """One triangle, binary (little-endian, or big with order ">"): 3 x 12 bytes of
+    vertices (24 with normals: the last vertex's normal is ``normal``), then the face
+    as a uchar count and three int32 indices. vertex: the last vertex's x, y, z."""
+    points = TRIANGLE.astype(order + "f4")
+    if vertex is not None:
+        points[2] = vertex
+    header = _ply_header("binary_little_endian" if order == "<" else "binary_big_endian",
+                         3, 1)
+    if normal is not None:
+        normals = np.zeros((3, 3), order + "f4")
+        normals[:, 2], normals[2] = 1.0, normal
+        points = np.concatenate([points, normals], axis=1)
+        header = header.replace(b"property float z\n", b"property float z\nproperty float nx"
+                                b"\nproperty float ny\nproperty float nz\n")
+    face = np.uint8(3).tobytes() + np.array([0, 1, 2], order + "i4").tobytes()
+    return header + points.tobytes() + face
 
 
 def ascii_ply(n_faces=1, face="face") -> bytes:
@@ -36,10 +48,12 @@ def ascii_ply(n_faces=1, face="face") -> bytes:
     return _ply_header("ascii", 3, n_faces, face) + body.encode()
 
 
-def binary_stl(n: int = 1) -> bytes:
+def binary_stl(n: int = 1, vertex=None) -> bytes:
     rows = np.zeros(n, dtype=[("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
     rows["normal"] = (0, 0, 1)
     rows["v"] = TRIANGLE
+    if vertex is not None:  # the last triangle's last vertex
+        rows["v"][-1, 2] = vertex
     return b"binary STL written by the test".ljust(80, b" ") + np.uint32(n).tobytes() \
         + rows.tobytes()
 
@@ -75,6 +89,10 @@ def _write(tmp_path, name, data: bytes):
     ("ascii.stl", ASCII_STL),
     ("mesh.obj", OBJ),
     ("indented.obj", b"o Scan\n  v 0 0 0\n\tv 1 0 0\nv 0 1 0\n  f 1 2 3\n"),
+    # finite numbers everywhere; words with "inf" or "nan" in them outside the vertices
+    ("normals.ply", binary_ply(normal=(0, 0.6, 0.8))),
+    ("big_endian.ply", binary_ply(order=">")),
+    ("words.obj", b"# information: a banana\nmtllib infinite.mtl\n" + OBJ),
 ])
 def test_good_mesh_files_pass(tmp_path, name, data):
     assert input_files.check_mesh(_write(tmp_path, name, data)) is None
@@ -106,6 +124,15 @@ def test_good_mesh_files_pass(tmp_path, name, data):
     ("solid.stl", b"solid nothing\nendsolid nothing\n", "mesh solid.stl has no faces"),
     ("text.stl", b"hello, this is not a mesh\n", "mesh text.stl is not an STL file"),
     ("cut.stl", binary_stl(2)[:-10], "mesh cut.stl is not an STL file"),
+    # a NaN or Inf vertex: Blender's PLY importer reads it as 0, a spike to the origin
+    ("nan.ply", binary_ply(vertex=(1, 2, np.nan)), "mesh nan.ply has vertices with NaN or Inf"),
+    ("inf_be.ply", binary_ply(vertex=(np.inf, 0, 0), order=">"), "has vertices with NaN or Inf"),
+    ("nan_normal.ply", binary_ply(normal=(0, np.nan, 1)), "has vertices with NaN or Inf"),
+    ("inf.ply", ascii_ply().replace(b"1 0 0\n", b"1 -inf 0\n"), "has vertices with NaN or Inf"),
+    ("nan.ply", ascii_ply().replace(b"1 0 0\n", b"1 NaN 0\n"), "has vertices with NaN or Inf"),
+    ("nan.obj", OBJ.replace(b"v 1 0 0", b"v 1 nan 0"), "mesh nan.obj has vertices with NaN"),
+    ("nan.stl", binary_stl(2, vertex=(0, np.nan, 0)), "mesh nan.stl has vertices with NaN"),
+    ("inf.stl", ASCII_STL.replace(b"vertex 1 0 0", b"vertex 1 inf 0"), "has vertices with NaN"),
 ])
 def test_bad_mesh_files_are_one_sentence(tmp_path, name, data, message):
     path = _write(tmp_path, name, data)
