@@ -357,6 +357,11 @@ def cases() -> list[Case]:
              (0,), ("negative.exr",), job_text(photo={"image": "negative.exr"})),
         bad("photo-other-aspect", ph, "a 64 x 48 photo for the 48 x 48 camera", "wide.exr",
             photo={"image": "wide.exr"}),
+        Case("photo-crop", ph, "an EXR holding a 24 x 24 part of its 48 x 48 frame (its data "
+             "window, as a render cropped to a region)", (0,), ("crop.exr",),
+             job_text(photo={"image": "crop.exr"})),
+        Case("photo-overscan", ph, "control: an EXR whose data window holds its frame and 4 "
+             "pixels more each side", (0,), (), job_text(photo={"image": "overscan.exr"})),
         Case("photo-gray", ph, "control: a one-channel (Y) EXR of the photo's luminance",
              (0,), (), job_text(photo={"image": "gray.exr"})),
         Case("photo-twice-size", ph, "a 96 x 96 photo (the 48 x 48 one, pixels doubled)",
@@ -554,14 +559,20 @@ def _read_exr(path: pathlib.Path) -> np.ndarray:
     return pixels.reshape(spec.height, spec.width, spec.nchannels).copy()
 
 
-def _write_image(path: pathlib.Path, pixels: np.ndarray) -> None:
-    """Write (H, W, C) pixels: float32 as float, uint8 as 8-bit (by the suffix's format)."""
+def _write_image(path: pathlib.Path, pixels: np.ndarray, origin=(0, 0), frame=None) -> None:
+    """Write (H, W, C) pixels: float32 as float, uint8 as 8-bit (by the suffix's format);
+    origin (x, y) and frame (width, height): a data window placed in a display window
+    of that size at 0, 0 (default: the pixels are the frame)."""
     import OpenImageIO as oiio
 
     kind = oiio.FLOAT if pixels.dtype == np.float32 else oiio.UINT8
     h, w, c = pixels.shape
+    spec = oiio.ImageSpec(w, h, c, kind)
+    spec.x, spec.y = origin
+    if frame is not None:
+        spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, *frame
     out = oiio.ImageOutput.create(str(path))
-    if out is None or not out.open(str(path), oiio.ImageSpec(w, h, c, kind)):
+    if out is None or not out.open(str(path), spec):
         raise RuntimeError(f"cannot write {path}: {oiio.geterror()}")
     out.write_image(np.ascontiguousarray(pixels))
     out.close()
@@ -589,7 +600,10 @@ def build_inputs(folder: pathlib.Path) -> dict:
     ``scan_no_uv.ply`` (the same without its UV map), ``points.ply`` (its
     vertices, no faces), ``nan.ply`` (its first vertex at NaN), ``collapsed.ply``
     (every vertex at their mean) and ``far.ply`` (moved 1000 units along x);
-    ``gray.exr`` (one channel: the photo's luminance). Returns what was built and its seconds."""
+    ``gray.exr`` (one channel: the photo's luminance), ``crop.exr`` (the photo's
+    middle 24 x 24 as the data window of a 48 x 48 frame) and ``overscan.exr`` (the
+    photo in a 56 x 56 data window, 4 black pixels each side beyond the frame).
+    Returns what was built and its seconds."""
     import bpy
     from mathutils import Vector
 
@@ -641,6 +655,10 @@ def build_inputs(folder: pathlib.Path) -> dict:
     wide[:, 8:56] = photo
     _write_image(folder / "wide.exr", wide)
     _write_image(folder / "big.exr", np.repeat(np.repeat(photo, 2, axis=0), 2, axis=1))
+    _write_image(folder / "crop.exr", photo[12:36, 12:36], origin=(12, 12), frame=(48, 48))
+    overscan = np.zeros((56, 56, photo.shape[2]), np.float32)
+    overscan[4:52, 4:52] = photo
+    _write_image(folder / "overscan.exr", overscan, origin=(-4, -4), frame=(48, 48))
     luminance = photo[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
     _write_image(folder / "gray.exr", np.ascontiguousarray(luminance[..., None]))
     rgb = np.clip(photo[..., :3], 0.0, 1.0)

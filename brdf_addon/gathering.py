@@ -137,16 +137,19 @@ def capture_inputs(gathered) -> tuple[list[pipeline.PhotoInput], dict]:
 
 
 def capture_notes(capture: dict) -> list[str]:
-    """One line per thing done to the photos that the user should know: a scaled
-    or undistorted photo, an exposure scale, saturated pixels, the irradiance rule,
-    and each photo's warnings (its ``notes``: a photo partly inconsistent with its
-    light, ``core.capture.photo_checks``)."""
+    """One line per thing done to the photos that the user should know: a scaled,
+    partial (an EXR's data window smaller than its frame) or undistorted photo, an
+    exposure scale, saturated pixels, the irradiance rule, and each photo's warnings
+    (its ``notes``: a photo partly inconsistent with its light,
+    ``core.capture.photo_checks``)."""
     lines = []
     photos = capture.get("photos", [])
     for p in photos:
         name = p.get("name", "")
         if p.get("scaled"):
             lines.append(f"{name}: {p['scaled']}")
+        if p.get("partial"):
+            lines.append(f"{name}: {p['partial']}")
         if p.get("undistorted"):
             lines.append(f"{name}: undistorted ({p['undistorted']})")
         if p.get("exposure") and p.get("exposure_scale", 1.0) != 1.0:

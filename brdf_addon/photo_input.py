@@ -109,6 +109,11 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     mask = None
     if photo.mask_path:
         mask = photo_io.read_mask(bpy.path.abspath(photo.mask_path), (h, w))
+    if read.covered is not None:  # the file holds part of its frame: only that is used
+        mask = read.covered if mask is None else mask & read.covered
+        report["partial"] = (f"the file holds {np.count_nonzero(read.covered)} of the "
+                             f"frame's {w * h} pixels (its data window); only those are "
+                             "used")
     photo_io.check_finite(radiance, photo.name, mask)
     photo_checks.check_range(radiance, photo.name, mask)
     photo_checks.check_not_black(radiance, photo.name, mask)

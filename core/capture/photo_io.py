@@ -117,6 +117,11 @@ class Photo:
         (tuple of 3 floats: degrees, minutes, seconds), "GPS:LatitudeRef"
         ("N"/"S"), "Orientation" (int, EXIF 1..8), "oiio:ColorSpace" (str).
     nonfinite: number of pixels with a NaN or Inf colour channel.
+    covered: (H, W) bool, True where the file holds the pixel, or None where it
+        holds the whole frame. An EXR may store only part of its frame (its data
+        window, e.g. a render cropped to a region) or more than it (overscan);
+        ``radiance`` is always the frame (the display window), 0 where the file
+        holds nothing.
     """
 
     radiance: np.ndarray
@@ -129,6 +134,7 @@ class Photo:
     white_level: float | None
     metadata: dict
     nonfinite: int
+    covered: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -141,6 +147,7 @@ class _Pixels:
     bit_depth: int
     metadata: dict
     is_raw: bool
+    covered: np.ndarray | None = None  # (H, W) bool; None: the file holds the whole frame
 
 
 def srgb_to_linear(x: np.ndarray) -> np.ndarray:
@@ -231,7 +238,7 @@ def read_photo_file(path, color_space: str = "AUTO",
     return Photo(radiance=radiance, saturated=saturated, encoding=encoding,
                  encoding_reason=reason, file_format=pix.file_format,
                  bit_depth=pix.bit_depth, is_float=pix.is_float, white_level=level,
-                 metadata=pix.metadata, nonfinite=nonfinite)
+                 metadata=pix.metadata, nonfinite=nonfinite, covered=pix.covered)
 
 
 def check_finite(photo: Photo | np.ndarray, name: str, mask: np.ndarray | None = None) -> None:
@@ -364,9 +371,44 @@ def _read_pixels(name: str) -> _Pixels:
     is_float = codes.dtype.kind == "f"
     if not is_float and codes.dtype.kind not in "ui":
         raise ValueError(f"cannot read image {name}: unsupported pixel type {spec.format}")
+    codes, covered = display_frame(codes, (spec.x, spec.y),
+                                   (spec.full_x, spec.full_y, spec.full_width,
+                                    spec.full_height))
+    if covered is not None and not covered.any():
+        raise ValueError(f"image {name} holds no pixel of its frame (its data window "
+                         f"{spec.width}x{spec.height} at {spec.x},{spec.y} lies outside "
+                         f"its {spec.full_width}x{spec.full_height} display window): "
+                         "write the image again")
     return _Pixels(codes=np.ascontiguousarray(codes), file_format=file_format,
                    is_float=is_float, bit_depth=codes.dtype.itemsize * 8,
-                   metadata=_metadata(spec), is_raw=is_raw)
+                   metadata=_metadata(spec), is_raw=is_raw, covered=covered)
+
+
+def display_frame(codes: np.ndarray, origin: tuple[int, int],
+                  frame: tuple[int, int, int, int]) -> tuple[np.ndarray, np.ndarray | None]:
+    """A file's pixels placed in its frame (OpenEXR's display window).
+
+    codes: (h, w, C) pixels of the data window, whose top-left pixel is at
+    ``origin`` (x, y), in the file's pixel coordinates (y down). frame: the
+    display window (x, y, width, height) in the same coordinates. Returns the
+    (height, width, C) frame, 0 where the data window holds nothing, and the (height,
+    width) bool mask of what it holds (None when it holds the whole frame, pixels
+    outside the frame, overscan, dropped). A frame of no pixels is taken as the
+    data window itself."""
+    h, w = codes.shape[:2]
+    x0, y0 = origin
+    fx, fy, fw, fh = frame
+    if fw <= 0 or fh <= 0 or (x0, y0, w, h) == (fx, fy, fw, fh):
+        return codes, None
+    out = np.zeros((fh, fw, codes.shape[2]), dtype=codes.dtype)
+    covered = np.zeros((fh, fw), dtype=bool)
+    left, top = max(x0, fx), max(y0, fy)
+    right, bottom = min(x0 + w, fx + fw), min(y0 + h, fy + fh)
+    if right > left and bottom > top:
+        out[top - fy:bottom - fy, left - fx:right - fx] = \
+            codes[top - y0:bottom - y0, left - x0:right - x0]
+        covered[top - fy:bottom - fy, left - fx:right - fx] = True
+    return out, (None if covered.all() else covered)
 
 
 def _check_readable(name: str) -> bool:

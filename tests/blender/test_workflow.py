@@ -16,6 +16,7 @@ bpy = pytest.importorskip("bpy")
 from brdf_reconstruct.brdf_addon import (  # noqa: E402
     gathering,
     light_sources,
+    photo_input,
     photo_list,
     runner,
 )
@@ -254,6 +255,42 @@ def test_a_scan_no_photo_can_see_as_a_surface_is_one_clear_error(tiny, damage, m
     np.testing.assert_array_equal(np.array([tuple(v.co) for v in mesh.vertices]), before)
     tiny["scene"].brdf.target = scan
     gathering.check_scene(tiny["scene"])  # the undamaged scan passes
+
+
+def test_a_photo_holding_part_of_its_frame_is_used_where_it_holds_pixels(tiny):
+    """An EXR of the photo's middle (its data window, as a render cropped to a
+    region) is placed in its camera's frame: its radiance and G-buffers are the whole
+    photo's there, and only those pixels are used (a note says so). Before, the crop
+    was taken for a scaled photo and the camera scaled to it: every pixel misplaced."""
+    import OpenImageIO as oiio
+
+    entry = _add_photo(tiny)
+    full = photo_input.gather_photo(tiny["scene"], entry).input
+    inp = oiio.ImageInput.open(str(tiny["photo"]))
+    pixels = np.asarray(inp.read_image(0, 0, 0, inp.spec().nchannels, oiio.FLOAT))
+    h, w = inp.spec().height, inp.spec().width
+    inp.close()
+    pixels = pixels.reshape(h, w, -1)
+    top, left = h // 4, w // 4
+    part = np.ascontiguousarray(pixels[top:h - top, left:w - left])
+    spec = oiio.ImageSpec(part.shape[1], part.shape[0], part.shape[2], oiio.FLOAT)
+    spec.x, spec.y = left, top
+    spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, w, h
+    crop_path = tiny["photo"].with_name("view0_crop.exr")
+    out = oiio.ImageOutput.create(str(crop_path))
+    assert out.open(str(crop_path), spec)
+    out.write_image(part)
+    out.close()
+    entry.filepath = str(crop_path)
+    gathered = photo_input.gather_photo(tiny["scene"], entry)
+    crop = gathered.input
+    window = np.zeros((h, w), bool)
+    window[top:h - top, left:w - left] = True
+    np.testing.assert_array_equal(crop.normal, full.normal)
+    np.testing.assert_array_equal(crop.photo[window], full.photo[window])
+    used_full = full.region >= 0 if full.mask is None else (full.region >= 0) & full.mask
+    np.testing.assert_array_equal(crop.mask & (crop.region >= 0), used_full & window)
+    assert "holds" in gathered.report["partial"] and "scaled" not in gathered.report
 
 
 def test_cancel_leaves_the_scene_unchanged(tiny):

@@ -469,3 +469,59 @@ def test_check_finite_counts_bad_pixels_inside_the_mask(tmp_path):
     photo_io.check_finite(np.zeros((4, 5)), "grey")
     with pytest.raises(ValueError, match="mask for photo bad.exr is 4x4 pixels"):
         photo_io.check_finite(photo, "bad.exr", np.ones((4, 4), bool))
+
+
+def _write_windowed_exr(path, pixels, origin, frame):
+    """An EXR whose data window (pixels (h, w, 3) at origin x, y) differs from its
+    display window frame (x, y, width, height), as a render cropped to a region or
+    with overscan is written."""
+    h, w = pixels.shape[:2]
+    spec = oiio.ImageSpec(w, h, 3, oiio.FLOAT)
+    spec.x, spec.y = origin
+    spec.full_x, spec.full_y, spec.full_width, spec.full_height = frame
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec)
+    out.write_image(np.ascontiguousarray(pixels, dtype=np.float32))
+    out.close()
+
+
+def test_an_exr_holding_part_of_its_frame_is_placed_in_it(tmp_path):
+    """A crop (data window 4 x 3 at 5, 2 of a 12 x 8 frame) is read as the 12 x 8 frame,
+    each pixel at its place, 0 outside and ``covered`` saying which pixels the file
+    holds; overscan (the frame inside a larger data window) is read as the frame with
+    ``covered`` None, as is a file whose windows agree."""
+    rng = np.random.default_rng(2)
+    frame = rng.uniform(0.1, 2.0, size=(8, 12, 3))
+    _write_windowed_exr(tmp_path / "crop.exr", frame[2:5, 5:9], (5, 2), (0, 0, 12, 8))
+    crop = photo_io.read_photo_file(tmp_path / "crop.exr")
+    assert crop.radiance.shape == (8, 12, 3)
+    want = np.zeros((8, 12), bool)
+    want[2:5, 5:9] = True
+    np.testing.assert_array_equal(crop.covered, want)
+    np.testing.assert_allclose(crop.radiance[want], frame[want].astype(np.float32), rtol=0)
+    assert np.all(crop.radiance[~want] == 0.0)
+    padded = np.zeros((12, 16, 3))
+    padded[2:10, 2:14] = frame
+    _write_windowed_exr(tmp_path / "overscan.exr", padded, (-2, -2), (0, 0, 12, 8))
+    over = photo_io.read_photo_file(tmp_path / "overscan.exr")
+    assert over.covered is None
+    np.testing.assert_allclose(over.radiance, frame.astype(np.float32), rtol=0)
+    _write_windowed_exr(tmp_path / "whole.exr", frame, (0, 0), (0, 0, 12, 8))
+    assert photo_io.read_photo_file(tmp_path / "whole.exr").covered is None
+
+
+def test_an_exr_whose_pixels_lie_outside_its_frame_is_one_sentence(tmp_path):
+    _write_windowed_exr(tmp_path / "off.exr", np.ones((3, 4, 3)), (40, 40), (0, 0, 12, 8))
+    with pytest.raises(ValueError, match="holds no pixel of its frame") as error:
+        photo_io.read_photo_file(tmp_path / "off.exr")
+    assert "off.exr" in str(error.value) and "\n" not in str(error.value)
+
+
+def test_display_frame_places_a_window_with_a_shifted_frame_origin():
+    """The frame need not start at 0, 0: a data window at (3, 1) in a frame at (2, 0)
+    lands one column and one row in."""
+    codes = np.arange(2 * 2 * 3).reshape(2, 2, 3)
+    out, covered = photo_io.display_frame(codes, (3, 1), (2, 0, 4, 3))
+    assert out.shape == (3, 4, 3) and out.dtype == codes.dtype
+    np.testing.assert_array_equal(out[1:3, 1:3], codes)
+    assert covered.sum() == 4 and covered[1:3, 1:3].all()
