@@ -362,6 +362,11 @@ def cases() -> list[Case]:
              job_text(photo={"image": "crop.exr"})),
         Case("photo-overscan", ph, "control: an EXR whose data window holds its frame and 4 "
              "pixels more each side", (0,), (), job_text(photo={"image": "overscan.exr"})),
+        Case("photo-multilayer", ph, "a Blender multilayer EXR: an AO pass before the "
+             "Combined layer, and a depth pass", (0,), ("layers.exr",),
+             job_text(photo={"image": "layers.exr"})),
+        bad("photo-passes-only", ph, "an EXR of two passes (AO, Albedo) and no image layer",
+            "passes.exr", photo={"image": "passes.exr"}),
         Case("photo-gray", ph, "control: a one-channel (Y) EXR of the photo's luminance",
              (0,), (), job_text(photo={"image": "gray.exr"})),
         Case("photo-twice-size", ph, "a 96 x 96 photo (the 48 x 48 one, pixels doubled)",
@@ -559,10 +564,12 @@ def _read_exr(path: pathlib.Path) -> np.ndarray:
     return pixels.reshape(spec.height, spec.width, spec.nchannels).copy()
 
 
-def _write_image(path: pathlib.Path, pixels: np.ndarray, origin=(0, 0), frame=None) -> None:
+def _write_image(path: pathlib.Path, pixels: np.ndarray, origin=(0, 0), frame=None,
+                 names=None) -> None:
     """Write (H, W, C) pixels: float32 as float, uint8 as 8-bit (by the suffix's format);
     origin (x, y) and frame (width, height): a data window placed in a display window
-    of that size at 0, 0 (default: the pixels are the frame)."""
+    of that size at 0, 0 (default: the pixels are the frame); names: the C channels'
+    names (default: the format's own)."""
     import OpenImageIO as oiio
 
     kind = oiio.FLOAT if pixels.dtype == np.float32 else oiio.UINT8
@@ -571,6 +578,8 @@ def _write_image(path: pathlib.Path, pixels: np.ndarray, origin=(0, 0), frame=No
     spec.x, spec.y = origin
     if frame is not None:
         spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, *frame
+    if names is not None:
+        spec.channelnames = names
     out = oiio.ImageOutput.create(str(path))
     if out is None or not out.open(str(path), spec):
         raise RuntimeError(f"cannot write {path}: {oiio.geterror()}")
@@ -602,8 +611,10 @@ def build_inputs(folder: pathlib.Path) -> dict:
     (every vertex at their mean) and ``far.ply`` (moved 1000 units along x);
     ``gray.exr`` (one channel: the photo's luminance), ``crop.exr`` (the photo's
     middle 24 x 24 as the data window of a 48 x 48 frame) and ``overscan.exr`` (the
-    photo in a 56 x 56 data window, 4 black pixels each side beyond the frame).
-    Returns what was built and its seconds."""
+    photo in a 56 x 56 data window, 4 black pixels each side beyond the frame),
+    ``layers.exr`` (a multilayer EXR: an AO pass of 0.9, the photo as Combined, a
+    depth) and ``passes.exr`` (AO and Albedo layers, no image). Returns what was
+    built and its seconds."""
     import bpy
     from mathutils import Vector
 
@@ -659,6 +670,13 @@ def build_inputs(folder: pathlib.Path) -> dict:
     overscan = np.zeros((56, 56, photo.shape[2]), np.float32)
     overscan[4:52, 4:52] = photo
     _write_image(folder / "overscan.exr", overscan, origin=(-4, -4), frame=(48, 48))
+    ao = np.full(photo.shape[:2] + (3,), 0.9, np.float32)
+    _write_image(folder / "layers.exr", np.concatenate(
+        [ao, photo[..., :4], np.full(photo.shape[:2] + (1,), 7.0, np.float32)], axis=-1),
+        names=[f"ViewLayer.AO.{c}" for c in "RGB"]
+        + [f"ViewLayer.Combined.{c}" for c in "RGBA"] + ["ViewLayer.Depth.Z"])
+    _write_image(folder / "passes.exr", np.concatenate([ao, photo[..., :3]], axis=-1),
+                 names=[f"{layer}.{c}" for layer in ("AO", "Albedo") for c in "RGB"])
     luminance = photo[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
     _write_image(folder / "gray.exr", np.ascontiguousarray(luminance[..., None]))
     rgb = np.clip(photo[..., :3], 0.0, 1.0)

@@ -138,9 +138,9 @@ def capture_inputs(gathered) -> tuple[list[pipeline.PhotoInput], dict]:
 
 def capture_notes(capture: dict) -> list[str]:
     """One line per thing done to the photos that the user should know: a scaled,
-    partial (an EXR's data window smaller than its frame) or undistorted photo, an
-    exposure scale, saturated pixels, the irradiance rule, and each photo's warnings
-    (its ``notes``: a photo partly inconsistent with its light,
+    partial (an EXR's data window smaller than its frame), multilayer or undistorted
+    photo, an exposure scale, saturated pixels, the irradiance rule, and each photo's
+    warnings (its ``notes``: a photo partly inconsistent with its light,
     ``core.capture.photo_checks``)."""
     lines = []
     photos = capture.get("photos", [])
@@ -150,6 +150,8 @@ def capture_notes(capture: dict) -> list[str]:
             lines.append(f"{name}: {p['scaled']}")
         if p.get("partial"):
             lines.append(f"{name}: {p['partial']}")
+        if p.get("layer"):
+            lines.append(f"{name}: colour read from its layer {p['layer']}")
         if p.get("undistorted"):
             lines.append(f"{name}: undistorted ({p['undistorted']})")
         if p.get("exposure") and p.get("exposure_scale", 1.0) != 1.0:

@@ -109,6 +109,8 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     mask = None
     if photo.mask_path:
         mask = photo_io.read_mask(bpy.path.abspath(photo.mask_path), (h, w))
+    if read.layer is not None:  # a multilayer file: its colour layer, by name
+        report["layer"] = read.layer
     if read.covered is not None:  # the file holds part of its frame: only that is used
         mask = read.covered if mask is None else mask & read.covered
         report["partial"] = (f"the file holds {np.count_nonzero(read.covered)} of the "

@@ -122,6 +122,9 @@ class Photo:
         window, e.g. a render cropped to a region) or more than it (overscan);
         ``radiance`` is always the frame (the display window), 0 where the file
         holds nothing.
+    layer: the layer the colour was read from when the file names its channels by
+        layer (e.g. ``"ViewLayer.Combined"`` of a Blender multilayer EXR), else None
+        (:func:`colour_channels`).
     """
 
     radiance: np.ndarray
@@ -135,6 +138,7 @@ class Photo:
     metadata: dict
     nonfinite: int
     covered: np.ndarray | None = None
+    layer: str | None = None
 
 
 @dataclass(frozen=True)
@@ -148,6 +152,7 @@ class _Pixels:
     metadata: dict
     is_raw: bool
     covered: np.ndarray | None = None  # (H, W) bool; None: the file holds the whole frame
+    layer: str | None = None  # the named layer the colour was read from (colour_channels)
 
 
 def srgb_to_linear(x: np.ndarray) -> np.ndarray:
@@ -238,7 +243,8 @@ def read_photo_file(path, color_space: str = "AUTO",
     return Photo(radiance=radiance, saturated=saturated, encoding=encoding,
                  encoding_reason=reason, file_format=pix.file_format,
                  bit_depth=pix.bit_depth, is_float=pix.is_float, white_level=level,
-                 metadata=pix.metadata, nonfinite=nonfinite, covered=pix.covered)
+                 metadata=pix.metadata, nonfinite=nonfinite, covered=pix.covered,
+                 layer=pix.layer)
 
 
 def check_finite(photo: Photo | np.ndarray, name: str, mask: np.ndarray | None = None) -> None:
@@ -364,7 +370,10 @@ def _read_pixels(name: str) -> _Pixels:
     if pixels is None or error or np.size(pixels) == 0:
         raise ValueError(f"cannot read image {name}: {_one_line(error) or 'no pixels'}")
     pixels = np.asarray(pixels).reshape(spec.height, spec.width, nchannels)
-    if nchannels >= 3:
+    rgb, layer = colour_channels(list(spec.channelnames), f"image {name}")
+    if rgb is not None:
+        codes = pixels[..., rgb]
+    elif nchannels >= 3:
         codes = pixels[..., :3]
     else:
         codes = np.repeat(pixels[..., :1], 3, axis=-1)
@@ -381,7 +390,48 @@ def _read_pixels(name: str) -> _Pixels:
                          "write the image again")
     return _Pixels(codes=np.ascontiguousarray(codes), file_format=file_format,
                    is_float=is_float, bit_depth=codes.dtype.itemsize * 8,
-                   metadata=_metadata(spec), is_raw=is_raw, covered=covered)
+                   metadata=_metadata(spec), is_raw=is_raw, covered=covered, layer=layer)
+
+
+# the layer names that hold the image itself, beside passes (Blender's Combined; the
+# names other renderers and compositors give their beauty layer), lower case
+COLOUR_LAYERS = ("combined", "beauty", "rgba", "rgb", "image", "color", "colour")
+_SUFFIXES = {"r": 0, "red": 0, "g": 1, "green": 1, "b": 2, "blue": 2}
+
+
+def colour_channels(names: list[str], file: str = "the image") -> tuple[list[int] | None,
+                                                                         str | None]:
+    """Which channels of a file are its colour: (indices of R, G, B, the layer's name
+    or None), or (None, None) when no three channels are named so (then the first
+    three, or a grey channel, are taken).
+
+    names: the file's channel names in its order, e.g. ``["R", "G", "B", "A"]`` or a
+    Blender multilayer EXR's ``["ViewLayer.AO.R", ..., "ViewLayer.Combined.R",
+    ...]``. A layer is the part of a name before its last dot; its R, G and B (or
+    red, green, blue, any case) are a colour. The unnamed layer wins; else the one
+    colour layer; else the one whose last word is in COLOUR_LAYERS (Combined,
+    beauty, ...). Several colour layers and none of them the image's: ValueError
+    naming them (taking the first, an AO or albedo pass, would be a wrong photo)."""
+    layers: dict[str, list[int | None]] = {}
+    for index, channel in enumerate(names):
+        prefix, _, suffix = channel.rpartition(".")
+        slot = _SUFFIXES.get(suffix.lower())
+        if slot is not None:
+            layers.setdefault(prefix, [None, None, None])[slot] = index
+    colour = {prefix: idx for prefix, idx in layers.items() if None not in idx}
+    if not colour:
+        return None, None
+    if "" in colour:
+        return colour[""], None
+    if len(colour) == 1:
+        (prefix, idx), = colour.items()
+        return idx, prefix
+    image = [p for p in colour if p.rpartition(".")[2].lower() in COLOUR_LAYERS]
+    if len(image) == 1:
+        return colour[image[0]], image[0]
+    shown = ", ".join(sorted(colour)[:6]) + (" and more" if len(colour) > 6 else "")
+    raise ValueError(f"{file} holds several colour layers ({shown}) and none is named as "
+                     "the image (Combined, beauty): save the photo's own layer alone")
 
 
 def display_frame(codes: np.ndarray, origin: tuple[int, int],

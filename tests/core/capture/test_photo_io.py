@@ -525,3 +525,51 @@ def test_display_frame_places_a_window_with_a_shifted_frame_origin():
     assert out.shape == (3, 4, 3) and out.dtype == codes.dtype
     np.testing.assert_array_equal(out[1:3, 1:3], codes)
     assert covered.sum() == 4 and covered[1:3, 1:3].all()
+
+
+def _write_named_channels(path, pixels, names):
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], len(names), oiio.FLOAT)
+    spec.channelnames = names
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec)
+    out.write_image(np.ascontiguousarray(pixels, dtype=np.float32))
+    out.close()
+
+
+def test_a_multilayer_exr_is_read_from_its_combined_layer_not_its_first_pass(tmp_path):
+    """Blender's multilayer EXR with an AO pass: the AO layer's channels come first.
+    The photo is the Combined layer's R, G, B (before, the first three channels: the
+    AO, a wrong photo without a word); its layer is reported."""
+    names = ["ViewLayer.AO.R", "ViewLayer.AO.G", "ViewLayer.AO.B", "ViewLayer.Combined.B",
+             "ViewLayer.Combined.G", "ViewLayer.Combined.R", "ViewLayer.Combined.A",
+             "ViewLayer.Depth.Z"]
+    pixels = np.zeros((4, 5, len(names)))
+    pixels[..., :3] = 0.9
+    pixels[..., 3:8] = (0.3, 0.2, 0.1, 1.0, 7.0)  # Combined B, G, R (this order), A; Z
+    _write_named_channels(tmp_path / "layers.exr", pixels, names)
+    photo = photo_io.read_photo_file(tmp_path / "layers.exr")
+    np.testing.assert_allclose(photo.radiance, np.broadcast_to(
+        np.float32([0.1, 0.2, 0.3]), (4, 5, 3)), rtol=0)
+    assert photo.layer == "ViewLayer.Combined"
+
+
+@pytest.mark.parametrize("names, rgb, layer", [
+    (["R", "G", "B", "A"], [0, 1, 2], None),
+    (["A", "B", "G", "R"], [3, 2, 1], None),  # EXR's alphabetical order
+    (["Y"], None, None),
+    (["diffuse.R", "diffuse.G", "diffuse.B"], [0, 1, 2], "diffuse"),  # the one layer
+    (["albedo.R", "albedo.G", "albedo.B", "R", "G", "B"], [3, 4, 5], None),
+    (["a.beauty.red", "a.beauty.green", "a.beauty.blue", "z.spec.R", "z.spec.G", "z.spec.B"],
+     [0, 1, 2], "a.beauty"),
+    (["Combined.R", "Combined.G"], None, None),  # no blue: no colour layer
+])
+def test_colour_channels_by_name(names, rgb, layer):
+    assert photo_io.colour_channels(names) == (rgb, layer)
+
+
+def test_several_colour_layers_and_none_the_image_is_one_sentence(tmp_path):
+    names = ["AO.R", "AO.G", "AO.B", "Albedo.R", "Albedo.G", "Albedo.B"]
+    _write_named_channels(tmp_path / "passes.exr", np.ones((3, 3, 6)), names)
+    with pytest.raises(ValueError, match="several colour layers .AO, Albedo.") as error:
+        photo_io.read_photo_file(tmp_path / "passes.exr")
+    assert "passes.exr" in str(error.value) and "\n" not in str(error.value)
