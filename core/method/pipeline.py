@@ -146,7 +146,9 @@ class RefineInputs:
 
     method: "energy" or "photo" (:data:`REFINEMENTS` but "none"). basis: the run's
     Basis. observed: the region's observed samples after the up-front removals
-    (``Samples``, N). trusted: the reliable region's samples (M). options: keyword
+    (``Samples``, N), at most ``refine.MAX_REFIT_SAMPLES`` of them
+    (``refine.refit_samples``). trusted: the reliable region's samples (M; the same
+    share of them as of the observed). options: keyword
     arguments of the refit (``peak_bound`` for the energy refit). photo_consistent:
     the run's setting (``PipelineSettings.photo_consistent``). normalised: the
     photos were normalised with an earlier table (a textured region's,
@@ -170,8 +172,11 @@ class RegionResult:
     status: "ok" or "skipped" (then ``reason`` says why, in one sentence).
     counts: samples at each stage: ``observed`` (after the up-front removals,
     which are in ``removed_up_front``), ``removed`` per reliable stage,
-    ``reliable``, and ``saturated``: the region's pixels at or above the clip
-    level (removed up front). Where there are any, Eq. (2) (the brightest pixel
+    ``reliable``, ``refit`` (the observed samples the refinement reads, at most
+    ``refine.MAX_REFIT_SAMPLES``, and ``refit_trusted``, the same share of the
+    reliable ones; absent without a refinement), and
+    ``saturated``: the region's pixels at or above the clip level (removed up
+    front). Where there are any, Eq. (2) (the brightest pixel
     as the peak) is not applied: the peak was clipped, so the brightest pixel
     left is on the highlight's edge; ``skipped_assumptions["brightest"]`` says so.
     skipped_assumptions: per reliable stage, whether the data rejected its
@@ -397,7 +402,10 @@ def run_region(
         # Eq. (2)'s bound on the peak where Eq. (2) holds (not with the peak clipped);
         # refitted to every pixel, the albedo's bound is refine_chosen's
         options = {"peak_bound": rel.use_brightest} if method == "energy" else {}
-        result.refine_inputs = RefineInputs(method, basis, observed, cand, options,
+        # a large region: a uniform draw of its observed and trusted samples
+        refit, refit_trusted = refine.refit_samples(observed, cand)
+        result.counts.update(refit=len(refit), refit_trusted=len(refit_trusted))
+        result.refine_inputs = RefineInputs(method, basis, refit, refit_trusted, options,
                                             settings.photo_consistent, normalised)
         check(cancelled)
         if progress:

@@ -200,6 +200,14 @@ _UNBOUNDED = 1e150  # a peak bound above this bounds nothing (and its square is 
 _FLOOR = 1e-150  # a sum or bound below this is 0 (and its square is not)
 _BLACK = 1e-6  # a channel below this share of the brightest one's light holds none
 _NOISE_PIXELS = 200_000  # normal_noise's pixels per photo and direction, at most
+# The refits (and the judge's held-out refits) read at most this many of a region's
+# observed samples, and the same share of its trusted ones (refit_samples): their
+# cost grows with the samples (an N x k Jacobian and an M x k mapped term per
+# Gauss-Newton step), and k = 40 coefficients per channel are fixed long before.
+# Every capture the benches use holds fewer (at most about 140,000: 16 photos of
+# 240 x 180), so none of their numbers moves.
+MAX_REFIT_SAMPLES = 200_000
+_REFIT_SEED = 20171  # the draw of refit_samples: fixed, so every seed reads the same
 
 
 def photo_consistent(
@@ -611,6 +619,46 @@ def normal_noise(normals, masks) -> float:
             angles.append(np.degrees(np.arccos(cos)))
     angles = np.concatenate(angles) if angles else np.zeros(0)
     return float(np.median(angles)) if len(angles) else 0.0
+
+
+def refit_samples(observed: Samples, trusted: Samples,
+                  at_most: int | None = None) -> tuple[Samples, Samples]:
+    """The samples the refits read: ``(observed, trusted)`` themselves when the
+    observed hold at most ``at_most`` (N; default :data:`MAX_REFIT_SAMPLES`), else a
+    uniform draw of ``at_most`` observed samples and the same share of the trusted
+    ones, so the radiance and mapped terms keep their weights against each other
+    (each term weighs as its count over its noise level). Each draw keeps its
+    samples' order, each photo's brightest sample per channel (the peak the energy
+    refit bounds its pixels by), and is the same for every run seed
+    (``_REFIT_SEED``). A uniform draw keeps each photo's share and every sum's ratio
+    (``energy_ratios``) in expectation, as a photo of fewer pixels would, without
+    its blur."""
+    at_most = MAX_REFIT_SAMPLES if at_most is None else int(at_most)
+    if at_most < 1:
+        raise ValueError(f"at_most must be at least 1, got {at_most}")
+    if len(observed) <= at_most:
+        return observed, trusted
+    share = at_most / len(observed)
+    return (_uniform_draw(observed, at_most),
+            _uniform_draw(trusted, max(1, round(share * len(trusted)))))
+
+
+def _uniform_draw(samples: Samples, size: int) -> Samples:
+    """``size`` of ``samples`` (all of them if it holds no more), in their order:
+    each view's brightest sample per channel, and a fixed uniform draw of the rest."""
+    n = len(samples)
+    if n <= size:
+        return samples
+    radiance = np.asarray(samples.radiance, dtype=np.float64)
+    views = np.asarray(samples.view)
+    bright = np.unique(np.concatenate([
+        np.flatnonzero(views == v)[np.argmax(radiance[views == v], axis=0)]
+        for v in np.unique(views)]))[:size]
+    rest = np.ones(n, dtype=bool)
+    rest[bright] = False
+    drawn = np.random.default_rng(_REFIT_SEED).choice(
+        np.flatnonzero(rest), size=size - len(bright), replace=False)
+    return samples.subset(np.sort(np.concatenate([bright, drawn])))
 
 
 def energy_ratios(rec: Reconstruction, samples: Samples) -> np.ndarray:

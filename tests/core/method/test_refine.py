@@ -864,3 +864,45 @@ def test_photos_averaged_over_each_pixel_are_read_with_the_pixels_footprint(
     assert error["area"] > 3.0 * error["point"], error
     assert error["footprint"] < 0.5 * error["area"], error
     assert error["footprint"] < 2.0 * error["point"], error
+
+
+def test_a_region_over_the_refits_sample_cap_is_read_through_a_uniform_draw(
+        default_basis, heldout_tables, monkeypatch):
+    """refine.refit_samples: at most the cap of the observed samples and the same share
+    of the trusted ones, each photo's brightest sample per channel kept, the rest a
+    fixed uniform draw (the same for every call), and a region under the cap read
+    whole (the same objects: every number measured so far is unchanged). A draw of a
+    sixth of the samples refits a table the basis spans as well as all of them: it
+    reproduces every pixel, the five sixths it never read included."""
+    table, coefs = _basis_table(default_basis, np.random.default_rng(0))
+    samples, trusted = _samples(_inputs(table))
+    whole = refine.refit_samples(samples, trusted)
+    assert whole[0] is samples and whole[1] is trusted  # under the cap
+    cap = len(samples) // 6
+    drawn, drawn_trusted = refine.refit_samples(samples, trusted, cap)
+    assert len(drawn) == cap
+    assert len(drawn_trusted) == round(len(trusted) * cap / len(samples))
+    again, _ = refine.refit_samples(samples, trusted, cap)
+    np.testing.assert_array_equal(drawn.pixel, again.pixel)
+    np.testing.assert_array_equal(drawn.view, again.view)
+    for v in np.unique(samples.view):
+        np.testing.assert_array_equal(drawn.radiance[drawn.view == v].max(axis=0),
+                                      samples.radiance[samples.view == v].max(axis=0))
+    # each photo's share of the draw is its share of the samples, to sampling noise
+    share = np.bincount(drawn.view) / cap
+    assert np.allclose(share, np.bincount(samples.view) / len(samples), atol=0.02)
+    start = reconstruct(default_basis, trusted.cells[:1], trusted.rho[:1])
+    start = dataclasses.replace(start, coefficients=np.zeros_like(coefs))
+    refined = refine.photo_consistent(default_basis, start, drawn, drawn_trusted)
+    assert refine.relative_rmse(refined, samples) < 1e-3
+    # the energy each photo holds, read from the draw, is read from all to 3 %
+    np.testing.assert_allclose(refine.energy_ratios(start, drawn),
+                               refine.energy_ratios(start, samples), rtol=0.03)
+    with pytest.raises(ValueError, match="at_most must be at least 1"):
+        refine.refit_samples(samples, trusted, 0)
+    # the pipeline reads the draw and says so
+    monkeypatch.setattr(refine, "MAX_REFIT_SAMPLES", cap)
+    region = pipeline.run(default_basis, _inputs(table), SETTINGS).regions[0]
+    assert region.counts["refit"] == cap and len(region.refine_inputs.observed) == cap
+    assert region.counts["observed"] == len(samples)
+    assert region.counts["refit_trusted"] == len(region.refine_inputs.trusted) < len(trusted)
