@@ -22,10 +22,9 @@ What each check accepts:
 
 Every format: no vertex coordinate or normal that is NaN or Inf (Blender's PLY,
 OBJ and STL importers read such a number as 0: a spike to the origin no photo
-can show). Binary PLY vertices
-(when no list comes before them) and binary STL triangles are read as numpy
-rows from the mapped file; ASCII files are searched for a ``nan`` or ``inf``
-word in their vertex data.
+can show). Binary PLY vertices (when no list comes before them) and binary STL
+triangles are read as numpy rows from the mapped file; ASCII files are searched
+for a ``nan`` or ``inf`` word in their vertex data.
 """
 
 from __future__ import annotations
