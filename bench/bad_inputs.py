@@ -271,6 +271,8 @@ def cases() -> list[Case]:
              (0,), (), b"\xef\xbb\xbf" + good.encode(), quick=True),
         bad("settings-not-table", jf, "settings = 3, not a [settings] table", "settings",
             top={"settings": 3}),
+        bad("photo-listed-twice", jf, "the same image in two [[photo]] entries",
+            ("photo 2", "view0.exr"), photos=[{"image": "view0.exr"}, {"image": "./view0.exr"}]),
         bad("photo-not-tables", jf, "photo = [1, 2]", "photo", top={"photo": [1, 2]}),
         bad("photo-file-names", jf, 'photo = ["view0.exr"], a list of file names', "photo",
             top={"photo": ["view0.exr"]}),

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import pathlib
 import tomllib
 
@@ -158,6 +159,12 @@ def load(path) -> Job:
                     raise JobError(f"photo {i + 1} has both light and [photo.{kind}]")
                 photo["light"] = {kind: photo.pop(kind)}
         photo["image"] = _file(base, entry["image"], f"photo {i + 1} image")
+        twin = next((j for j, p in enumerate(job.photos)
+                     if os.path.samefile(p["image"], photo["image"])), None)
+        if twin is not None:  # one photo counted twice, and the judge's held-out test
+            # would predict it from itself
+            raise JobError(f"photo {i + 1} is photo {twin + 1} again "
+                           f"({photo['image'].name}): list each photo once")
         for key in ("mask", "grey_card", "reference_region"):
             if key in entry:
                 photo[key] = _file(base, entry[key], f"photo {i + 1} {key.replace('_', ' ')}")

@@ -13,7 +13,8 @@ TRIANGLE_PLY = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
 
 @pytest.fixture
 def folder(tmp_path):
-    for name in ("scan.ply", "lit/0012.exr", "lit/probe.exr", "sparse/0/cameras.bin"):
+    for name in ("scan.ply", "lit/0012.exr", "lit/0013.exr", "lit/probe.exr",
+                 "sparse/0/cameras.bin"):
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / name).write_bytes(TRIANGLE_PLY if name == "scan.ply" else b"")
     return tmp_path
@@ -58,7 +59,7 @@ date = "2026-06-21 12:00:00"
 latitude = 35.0
 longitude = 139.0
 [[photo]]
-image = "lit/0012.exr"
+image = "lit/0013.exr"
 camera = "cam"
 [photo.probe]
 image = "lit/probe.exr"
@@ -83,7 +84,7 @@ grey_card = "lit/probe.exr"
 [photo.sun]
 utc_offset = 2.0
 [[photo]]
-image = "lit/0012.exr"
+image = "lit/0013.exr"
 camera = "cam"
 [photo.probe]
 image = "lit/probe.exr"
@@ -112,6 +113,10 @@ radius = 33.0
     ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\ncolor_space = "rec709"',
      "color_space must be"),
     ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\nexposure = -1', "exposure must be"),
+    # one photo listed twice (here once through another spelling of its path): it would
+    # count twice, and the judge's held-out test would predict it from itself
+    ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\n[[photo]]\nimage = "lit/../lit/0012.exr"',
+     r"photo 2 is photo 1 again \(0012.exr\): list each photo once"),
     ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\n[photo.sun]\ndate = "x"\ntime = 1',
      r"\[photo.sun\] has unknown keys: time"),
     ('object = "S"\n[[photo]]\nimage = "lit/0012.exr"\ngrey_card = "lit/0012.exr"\n'
