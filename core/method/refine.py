@@ -651,9 +651,9 @@ def _uniform_draw(samples: Samples, size: int) -> Samples:
         return samples
     radiance = np.asarray(samples.radiance, dtype=np.float64)
     views = np.asarray(samples.view)
-    bright = np.unique(np.concatenate([
-        np.flatnonzero(views == v)[np.argmax(radiance[views == v], axis=0)]
-        for v in np.unique(views)]))[:size]
+    rows = [np.flatnonzero(views == v) for v in np.unique(views)]  # each view's samples
+    bright = np.unique(np.concatenate([r[np.argmax(radiance[r], axis=0)]
+                                       for r in rows]))[:size]
     rest = np.ones(n, dtype=bool)
     rest[bright] = False
     drawn = np.random.default_rng(_REFIT_SEED).choice(

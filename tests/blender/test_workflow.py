@@ -13,6 +13,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
+from image_files import write_image  # noqa: E402
+
 from brdf_reconstruct.brdf_addon import (  # noqa: E402
     gathering,
     light_sources,
@@ -272,15 +274,9 @@ def test_a_photo_holding_part_of_its_frame_is_used_where_it_holds_pixels(tiny):
     inp.close()
     pixels = pixels.reshape(h, w, -1)
     top, left = h // 4, w // 4
-    part = np.ascontiguousarray(pixels[top:h - top, left:w - left])
-    spec = oiio.ImageSpec(part.shape[1], part.shape[0], part.shape[2], oiio.FLOAT)
-    spec.x, spec.y = left, top
-    spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, w, h
-    crop_path = tiny["photo"].with_name("view0_crop.exr")
-    out = oiio.ImageOutput.create(str(crop_path))
-    assert out.open(str(crop_path), spec)
-    out.write_image(part)
-    out.close()
+    crop_path = write_image(tiny["photo"].with_name("view0_crop.exr"),
+                            pixels[top:h - top, left:w - left], oiio.FLOAT,
+                            origin=(left, top), frame=(0, 0, w, h))
     entry.filepath = str(crop_path)
     gathered = photo_input.gather_photo(tiny["scene"], entry)
     crop = gathered.input

@@ -472,17 +472,9 @@ def test_check_finite_counts_bad_pixels_inside_the_mask(tmp_path):
 
 
 def _write_windowed_exr(path, pixels, origin, frame):
-    """An EXR whose data window (pixels (h, w, 3) at origin x, y) differs from its
-    display window frame (x, y, width, height), as a render cropped to a region or
-    with overscan is written."""
-    h, w = pixels.shape[:2]
-    spec = oiio.ImageSpec(w, h, 3, oiio.FLOAT)
-    spec.x, spec.y = origin
-    spec.full_x, spec.full_y, spec.full_width, spec.full_height = frame
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), spec)
-    out.write_image(np.ascontiguousarray(pixels, dtype=np.float32))
-    out.close()
+    """A float EXR of ``pixels`` (h, w, 3) whose data window at ``origin`` differs from
+    its display window ``frame`` (x, y, width, height)."""
+    return write_image(path, pixels.astype(np.float32), oiio.FLOAT, origin=origin, frame=frame)
 
 
 def test_an_exr_holding_part_of_its_frame_is_placed_in_it(tmp_path):
@@ -527,15 +519,6 @@ def test_display_frame_places_a_window_with_a_shifted_frame_origin():
     assert covered.sum() == 4 and covered[1:3, 1:3].all()
 
 
-def _write_named_channels(path, pixels, names):
-    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], len(names), oiio.FLOAT)
-    spec.channelnames = names
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), spec)
-    out.write_image(np.ascontiguousarray(pixels, dtype=np.float32))
-    out.close()
-
-
 def test_a_multilayer_exr_is_read_from_its_combined_layer_not_its_first_pass(tmp_path):
     """Blender's multilayer EXR with an AO pass: the AO layer's channels come first.
     The photo is the Combined layer's R, G, B (before, the first three channels: the
@@ -546,7 +529,7 @@ def test_a_multilayer_exr_is_read_from_its_combined_layer_not_its_first_pass(tmp
     pixels = np.zeros((4, 5, len(names)))
     pixels[..., :3] = 0.9
     pixels[..., 3:8] = (0.3, 0.2, 0.1, 1.0, 7.0)  # Combined B, G, R (this order), A; Z
-    _write_named_channels(tmp_path / "layers.exr", pixels, names)
+    write_image(tmp_path / "layers.exr", pixels.astype(np.float32), oiio.FLOAT, names=names)
     photo = photo_io.read_photo_file(tmp_path / "layers.exr")
     np.testing.assert_allclose(photo.radiance, np.broadcast_to(
         np.float32([0.1, 0.2, 0.3]), (4, 5, 3)), rtol=0)
@@ -569,7 +552,8 @@ def test_colour_channels_by_name(names, rgb, layer):
 
 def test_several_colour_layers_and_none_the_image_is_one_sentence(tmp_path):
     names = ["AO.R", "AO.G", "AO.B", "Albedo.R", "Albedo.G", "Albedo.B"]
-    _write_named_channels(tmp_path / "passes.exr", np.ones((3, 3, 6)), names)
+    write_image(tmp_path / "passes.exr", np.ones((3, 3, 6), np.float32), oiio.FLOAT,
+                names=names)
     with pytest.raises(ValueError, match="several colour layers .AO, Albedo.") as error:
         photo_io.read_photo_file(tmp_path / "passes.exr")
     assert "passes.exr" in str(error.value) and "\n" not in str(error.value)
