@@ -369,6 +369,9 @@ def cases() -> list[Case]:
              job_text(photo={"image": "layers.exr"})),
         bad("photo-passes-only", ph, "an EXR of two passes (AO, Albedo) and no image layer",
             "passes.exr", photo={"image": "passes.exr"}),
+        Case("photo-clipped-float", ph, "a float EXR whose highlight is clipped at a white "
+             "level it does not state (a tenth of the lit pixels at one value)", (0,),
+             ("clipped.exr",), job_text(photo={"image": "clipped.exr"})),
         Case("photo-gray", ph, "control: a one-channel (Y) EXR of the photo's luminance",
              (0,), (), job_text(photo={"image": "gray.exr"})),
         Case("photo-twice-size", ph, "a 96 x 96 photo (the 48 x 48 one, pixels doubled)",
@@ -615,8 +618,9 @@ def build_inputs(folder: pathlib.Path) -> dict:
     middle 24 x 24 as the data window of a 48 x 48 frame) and ``overscan.exr`` (the
     photo in a 56 x 56 data window, 4 black pixels each side beyond the frame),
     ``layers.exr`` (a multilayer EXR: an AO pass of 0.9, the photo as Combined, a
-    depth) and ``passes.exr`` (AO and Albedo layers, no image). Returns what was
-    built and its seconds."""
+    depth), ``passes.exr`` (AO and Albedo layers, no image) and ``clipped.exr`` (the
+    photo clipped at its lit pixels' 90th percentile, a level it does not state).
+    Returns what was built and its seconds."""
     import bpy
     from mathutils import Vector
 
@@ -679,6 +683,12 @@ def build_inputs(folder: pathlib.Path) -> dict:
         + [f"ViewLayer.Combined.{c}" for c in "RGBA"] + ["ViewLayer.Depth.Z"])
     _write_image(folder / "passes.exr", np.concatenate([ao, photo[..., :3]], axis=-1),
                  names=[f"{layer}.{c}" for layer in ("AO", "Albedo") for c in "RGB"])
+    # the highlight clipped at a white level the file does not state (a RAW converter's
+    # EXR of a clipped photo): the lit pixels' 90th percentile, a tenth of them at it
+    clipped = photo.copy()
+    level = np.float32(np.quantile(photo[..., :3].reshape(-1, 3)[lit].max(axis=1), 0.9))
+    clipped[..., :3] = np.minimum(clipped[..., :3], level)
+    _write_image(folder / "clipped.exr", clipped)
     luminance = photo[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
     _write_image(folder / "gray.exr", np.ascontiguousarray(luminance[..., None]))
     rgb = np.clip(photo[..., :3], 0.0, 1.0)

@@ -139,8 +139,9 @@ def capture_inputs(gathered) -> tuple[list[pipeline.PhotoInput], dict]:
 def capture_notes(capture: dict) -> list[str]:
     """One line per thing done to the photos that the user should know: a scaled,
     partial (an EXR's data window smaller than its frame), multilayer or undistorted
-    photo, an exposure scale, saturated pixels, the irradiance rule, and each photo's
-    warnings (its ``notes``: a photo partly inconsistent with its light,
+    photo, a float photo clipped at a white level it does not state, an exposure
+    scale, saturated pixels, the irradiance rule, and each photo's warnings (its
+    ``notes``: a photo partly inconsistent with its light,
     ``core.capture.photo_checks``)."""
     lines = []
     photos = capture.get("photos", [])
@@ -152,6 +153,8 @@ def capture_notes(capture: dict) -> list[str]:
             lines.append(f"{name}: {p['partial']}")
         if p.get("layer"):
             lines.append(f"{name}: colour read from its layer {p['layer']}")
+        if p.get("clipped_at"):
+            lines.append(f"{name}: {p['clipped_at']}")
         if p.get("undistorted"):
             lines.append(f"{name}: undistorted ({p['undistorted']})")
         if p.get("exposure") and p.get("exposure_scale", 1.0) != 1.0:

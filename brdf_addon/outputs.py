@@ -93,7 +93,7 @@ def write_back(scene, inputs, result: pipeline.PipelineResult, timings: dict,
         entry.region, entry.label, entry.status, entry.reason = (
             r.region, label, r.status, r.reason)
         entry.counts = json.dumps(r.counts)
-        entry.notes = json.dumps(pipeline.refinement_notes(r.refinement or {}))
+        entry.notes = json.dumps(pipeline.region_notes(r.summary()))
         summary = r.summary() | {"label": label}
         if r.status == "ok":
             t0 = time.perf_counter()

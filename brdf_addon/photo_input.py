@@ -91,13 +91,30 @@ def check_size(name: str, camera_name: str, photo_size, want, source: str) -> st
                      f"{cw}x{ch} ({source}), a different aspect ratio")
 
 
+def clipped_at(radiance, plateau) -> str:
+    """The report's sentence for a float photo whose brightest pixels pile up at its
+    largest value: ``radiance`` (H, W, 3), ``plateau`` (3,) per channel that value,
+    NaN where a channel has none (``photo_io.Photo.plateau``)."""
+    with np.errstate(invalid="ignore"):
+        at = int(np.count_nonzero(np.any(radiance >= plateau, axis=-1)))  # NaN: never
+    levels = ", ".join(f"{name} {level:.6g}" for name, level in zip(
+        ("red", "green", "blue"), plateau, strict=True) if np.isfinite(level))
+    return (f"its brightest {at} pixels pile up at one value ({levels}), as a highlight "
+            "clipped at the camera's white level does: the highlight's peak is not in "
+            "the photo (a shorter exposure or a merged bracket would hold it); they are "
+            "used at that value (set the Saturation Level to leave them out)")
+
+
 def gather_photo(scene, photo, exposure_scale: float = 1.0,
                  exposure_note: str = "") -> GatheredPhoto:
     """One photo: read, checked, undistorted, lit, G-buffers, exposure, reference.
     Raises ValueError (one sentence) for a bad photo."""
     settings = scene.brdf
     path = bpy.path.abspath(photo.filepath)
-    read = photo_io.read_photo_file(path, photo.color_space)
+    # a float file states no white level: a highlight clipped at one is found where the
+    # pixels pile up at the largest value (said, not removed), unless the user gave it
+    read = photo_io.read_photo_file(path, photo.color_space,
+                                    find_clipping=settings.clip_level <= 0)
     radiance, saturated = read.radiance, read.saturated
     h, w = radiance.shape[:2]
     want, source = gbuffer.camera_resolution(photo.camera, scene)
@@ -109,6 +126,8 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     mask = None
     if photo.mask_path:
         mask = photo_io.read_mask(bpy.path.abspath(photo.mask_path), (h, w))
+    if read.plateau is not None and np.any(np.isfinite(read.plateau)):
+        report["clipped_at"] = clipped_at(read.radiance, read.plateau)
     if read.layer is not None:  # a multilayer file: its colour layer, by name
         report["layer"] = read.layer
     if read.covered is not None:  # the file holds part of its frame: only that is used

@@ -128,7 +128,7 @@ class BRDF_OT_reconstruct(bpy.types.Operator):
         for r in skipped:
             self.report({"WARNING"}, f"Skipped {r['label']}: {r['reason']}")
         for r in ok:
-            for line in pipeline.refinement_notes(r.get("refinement") or {}):
+            for line in pipeline.region_notes(r):
                 self._note("WARNING", f"{r['label']}: {line}")
         self.report({"INFO"}, f"Reconstructed {len(ok)} region(s); "
                     f"{len(skipped)} skipped")

@@ -125,6 +125,14 @@ class Photo:
     layer: the layer the colour was read from when the file names its channels by
         layer (e.g. ``"ViewLayer.Combined"`` of a Blender multilayer EXR), else None
         (:func:`colour_channels`).
+    plateau: (3,) float64, per channel the largest value of a float file where
+        that value is a plateau (:func:`plateau_levels`: a highlight clipped at a
+        white level the file does not state), NaN where the channel has none; None
+        where not looked for (integer files, a white level given, or not asked).
+        Pixels at a plateau are not marked ``saturated``: the caller says so to the
+        user, who may give the white level (measured: on blunted scans a clipped
+        highlight kept at its clipped value gives the better table, on exact
+        normals the one left out; docs/results.md).
     """
 
     radiance: np.ndarray
@@ -139,6 +147,37 @@ class Photo:
     nonfinite: int
     covered: np.ndarray | None = None
     layer: str | None = None
+    plateau: np.ndarray | None = None
+
+
+#: A float file's largest value in a channel is taken for a white level where at
+#: least PLATEAU_PIXELS pixels hold exactly it and at least as many as hold any value
+#: within PLATEAU_BAND below it (relative): a clipped highlight piles up at its white
+#: level, while a float render or a merged HDR holds its largest value in one pixel
+#: or a few among many just below (a half EXR's 10-bit mantissa puts about 20 codes
+#: in a 2 % band).
+PLATEAU_PIXELS = 8
+PLATEAU_BAND = 0.02
+
+
+def plateau_levels(values: np.ndarray) -> np.ndarray:
+    """Per channel, the largest value of ``values`` where it is a plateau (a white
+    level; see :data:`PLATEAU_PIXELS`), else NaN.
+
+    values: (H, W, 3) float linear values; non-finite ones are ignored. Returns
+    (3,) float64."""
+    out = np.full(3, np.nan)
+    for c in range(3):
+        v = values[..., c]
+        v = v[np.isfinite(v) & (v > 0.0)]
+        if len(v) < PLATEAU_PIXELS:
+            continue
+        top = float(np.max(v))
+        at = int(np.count_nonzero(v == top))
+        below = int(np.count_nonzero((v < top) & (v >= top * (1.0 - PLATEAU_BAND))))
+        if at >= PLATEAU_PIXELS and at >= below:
+            out[c] = top
+    return out
 
 
 @dataclass(frozen=True)
@@ -197,7 +236,7 @@ def declared_linear(metadata: dict) -> str | None:
 
 
 def read_photo_file(path, color_space: str = "AUTO",
-                    white_level: float | None = None) -> Photo:
+                    white_level: float | None = None, find_clipping: bool = False) -> Photo:
     """Read a photo as scene-linear radiance with its saturation mask and metadata.
 
     path: the image file (str or path-like).
@@ -209,6 +248,9 @@ def read_photo_file(path, color_space: str = "AUTO",
         units of ``Photo.radiance``); pixels with any channel >= it are
         saturated. Integer files are also saturated where any channel holds
         the largest code.
+    find_clipping: for a float file without ``white_level``, look for a channel
+        whose largest value the pixels pile up at, as at a white level
+        (:func:`plateau_levels`; ``Photo.plateau``; the pixels are left as they are).
 
     Raises ValueError (one sentence naming the file) for a missing,
     unreadable, truncated or corrupt file, a camera RAW file this build
@@ -239,12 +281,15 @@ def read_photo_file(path, color_space: str = "AUTO",
     radiance = values if encoding == "linear" else srgb_to_linear(values)
     if white_level is not None:
         saturated |= np.any(radiance >= white_level, axis=-1)
+    plateau = None
+    if find_clipping and pix.is_float and white_level is None:
+        plateau = plateau_levels(radiance)
     nonfinite = int(np.count_nonzero(~np.all(np.isfinite(radiance), axis=-1)))
     return Photo(radiance=radiance, saturated=saturated, encoding=encoding,
                  encoding_reason=reason, file_format=pix.file_format,
                  bit_depth=pix.bit_depth, is_float=pix.is_float, white_level=level,
                  metadata=pix.metadata, nonfinite=nonfinite, covered=pix.covered,
-                 layer=pix.layer)
+                 layer=pix.layer, plateau=plateau)
 
 
 def check_finite(photo: Photo | np.ndarray, name: str, mask: np.ndarray | None = None) -> None:

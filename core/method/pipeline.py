@@ -630,6 +630,24 @@ def refinement_notes(refinement: dict) -> list[str]:
     return [n for n in notes if n]
 
 
+def region_notes(summary: dict) -> list[str]:
+    """The sentences on a region its user should read, from its summary
+    (:meth:`RegionResult.summary`, as in ``report.json``): the refinement's
+    (:func:`refinement_notes`) and, where the photos' highlight is clipped
+    (``counts["saturated"]``), that its peak's height was not photographed."""
+    counts = summary.get("counts") or {}
+    clipped = int(counts.get("saturated") or 0)
+    notes = []
+    if clipped:
+        seen = clipped + int(counts.get("observed") or 0)
+        notes.append(
+            f"{clipped} of its pixels ({100.0 * clipped / seen:.1f} % of those the photos "
+            "show of it) are clipped, the brightest of its highlight among them: the "
+            "peak's height was not photographed, so the material's gloss is an estimate "
+            "(photograph it with a shorter exposure, or merge a bracket, to measure it)")
+    return notes + refinement_notes(summary.get("refinement") or {})
+
+
 def _reads(per_photo, judge: float) -> bool:
     """Whether a refit reproduces each photo (``per_photo``: relative RMSE, None
     where not finite) to ``judge`` or less."""

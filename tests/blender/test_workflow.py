@@ -289,6 +289,39 @@ def test_a_photo_holding_part_of_its_frame_is_used_where_it_holds_pixels(tiny):
     assert "holds" in gathered.report["partial"] and "scaled" not in gathered.report
 
 
+def test_a_float_photo_clipped_at_an_unstated_white_level_is_one_note(tiny):
+    """The photo's highlight clipped at a level the EXR does not state (as a RAW
+    converter writes a clipped camera photo) is found by its plateau and said in a
+    note that counts its pixels; they are used at their value, not removed
+    (docs/results.md measures why), and the photo's values are not changed. With the
+    user's Saturation Level the plateau is not looked for: the user's level rules."""
+    import OpenImageIO as oiio
+
+    entry = _add_photo(tiny)
+    full = photo_input.gather_photo(tiny["scene"], entry)
+    inp = oiio.ImageInput.open(str(tiny["photo"]))
+    spec = inp.spec()
+    pixels = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT))
+    inp.close()
+    pixels = pixels.reshape(spec.height, spec.width, -1).copy()
+    on_scan = full.input.photo[full.input.region >= 0]
+    # a tenth of the scan clipped, at a level the float32 file holds exactly
+    level = float(np.float32(np.quantile(on_scan.max(axis=-1), 0.9)))
+    pixels[..., :3] = np.minimum(pixels[..., :3], level)
+    entry.filepath = str(write_image(tiny["photo"].with_name("view0_clipped.exr"), pixels,
+                                     oiio.FLOAT))
+    gathered = photo_input.gather_photo(tiny["scene"], entry)
+    clipped = np.any(full.input.photo >= level, axis=-1)
+    assert f"its brightest {clipped.sum()} pixels pile up" in gathered.report["clipped_at"]
+    assert not gathered.input.saturated.any() and gathered.report["saturated_pixels"] == 0
+    np.testing.assert_array_equal(gathered.input.photo, np.minimum(full.input.photo, level))
+    assert not full.input.saturated.any() and "clipped_at" not in full.report
+    tiny["scene"].brdf.clip_level = level  # the user's level: those pixels left out
+    told = photo_input.gather_photo(tiny["scene"], entry)
+    assert "clipped_at" not in told.report
+    np.testing.assert_array_equal(told.input.saturated, clipped)
+
+
 def test_cancel_leaves_the_scene_unchanged(tiny):
     _add_photo(tiny)
     before = {k: len(getattr(bpy.data, k)) for k in ("materials", "images", "node_groups",

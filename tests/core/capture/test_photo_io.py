@@ -301,6 +301,66 @@ def test_float_saturation_only_with_a_white_level(tmp_path):
             photo_io.read_photo_file(tmp_path / "w.exr", white_level=bad)
 
 
+def _highlight(noise: float, seed: int = 0) -> np.ndarray:
+    """(64, 64, 3) a diffuse level of 0.2 with a Gaussian highlight of 8 on it, its
+    colour slightly warm, with relative Gaussian noise."""
+    y, x = np.mgrid[0:64, 0:64]
+    lobe = np.exp(-((x - 30.0) ** 2 + (y - 34.0) ** 2) / (2 * 6.0**2))
+    values = (0.2 + 8.0 * lobe)[..., None] * np.array([1.0, 0.9, 0.8])
+    rng = np.random.default_rng(seed)
+    return values * (1.0 + noise * rng.standard_normal(values.shape))
+
+
+@pytest.mark.parametrize("fmt", [oiio.FLOAT, oiio.HALF])
+def test_a_float_photo_clipped_at_an_unstated_white_level_is_found_by_its_plateau(
+        tmp_path, fmt):
+    """A camera's highlight clipped at its white level, written to a float file (a RAW
+    converter's EXR), piles up at one value per channel (after white balance, a level
+    of each channel's own): found without being told the level, the pixels left as
+    they are (not marked saturated); not looked for unless asked, nor where the
+    caller gives a white level."""
+    values = _highlight(0.01)
+    levels = np.array([3.0, 2.5, 2.0])
+    clipped = np.minimum(values, levels)
+    path = write_image(tmp_path / "clipped.exr", clipped.astype(np.float32), fmt)
+    stored = photo_io.read_photo_file(path).radiance  # as the file holds it
+    photo = photo_io.read_photo_file(path, find_clipping=True)
+    np.testing.assert_allclose(photo.plateau, levels, rtol=1e-3)  # half: its rounding
+    at = np.any(stored >= photo.plateau, axis=-1)
+    np.testing.assert_array_equal(at, np.any(values >= levels, axis=-1))
+    assert 50 < at.sum() < 400  # the highlight's core, not the shoulder
+    np.testing.assert_array_equal(photo.radiance, stored)  # no value changed
+    assert not photo.saturated.any()  # said, not removed
+    assert photo_io.read_photo_file(path).plateau is None  # not asked
+    assert not photo_io.read_photo_file(path).saturated.any()
+    told = photo_io.read_photo_file(path, white_level=10.0, find_clipping=True)
+    assert told.plateau is None and not told.saturated.any()  # the caller's level rules
+
+
+@pytest.mark.parametrize("fmt", [oiio.FLOAT, oiio.HALF])
+@pytest.mark.parametrize("noise", [0.0, 0.01])
+def test_an_unclipped_float_photo_has_no_plateau(tmp_path, fmt, noise):
+    """The same highlight not clipped, noise-free or noisy, in float or half (whose
+    10-bit mantissa rounds the values near the peak together): no channel's largest
+    value is taken for a white level, and no pixel is saturated."""
+    path = write_image(tmp_path / "lit.exr", _highlight(noise).astype(np.float32), fmt)
+    photo = photo_io.read_photo_file(path, find_clipping=True)
+    assert np.all(np.isnan(photo.plateau)) and not photo.saturated.any()
+
+
+def test_plateau_levels_needs_a_pile_at_the_top_not_a_few_equal_pixels():
+    values = np.zeros((10, 10, 3))
+    values[..., :] = np.linspace(0.1, 1.0, 100).reshape(10, 10, 1)
+    values[0, :7] = 2.0  # seven at the top: fewer than PLATEAU_PIXELS
+    assert np.all(np.isnan(photo_io.plateau_levels(values)))
+    values[1, :photo_io.PLATEAU_PIXELS] = 2.0  # a pile: 15 at the top, none just below
+    np.testing.assert_array_equal(photo_io.plateau_levels(values), [2.0, 2.0, 2.0])
+    values[2:6] = 1.99  # 40 just below the top: a smooth peak, not a clip
+    assert np.all(np.isnan(photo_io.plateau_levels(values)))
+    values[..., 2] = np.nan  # a channel with no finite value has none
+    assert np.isnan(photo_io.plateau_levels(values)[2])
+
+
 _EXIF = {
     "ExposureTime": 1.0 / 125.0,
     "FNumber": 8.0,

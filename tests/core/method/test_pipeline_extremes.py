@@ -86,10 +86,13 @@ def test_white_level_removes_exactly_the_clipped_pixels(default_basis):
     _assert_finite(pipeline.run(default_basis, inputs, told))
 
 
-def test_clipped_highlight_turns_off_the_brightest_peak_rule(default_basis):
+def test_clipped_highlight_turns_off_the_brightest_peak_rule_and_is_one_note(default_basis):
     """Eq. (2) puts the brightest pixel at theta_h = 0. With the highlight clipped and
     its core removed, the brightest pixel left sits at the white level on the
-    highlight's edge, so the region skips Eq. (2) and says so; unclipped, it keeps it."""
+    highlight's edge, so the region skips Eq. (2) and says so; unclipped, it keeps it.
+    The region's notes (the panel's and the batch run's) say that the peak's height
+    was not photographed, with the count and share of its pixels clipped; unclipped,
+    no such note."""
     table = database.make_table(next(s for s in database.heldout_specs()
                                      if s["name"] == "heldout_glossy_plastic"))
     level = 0.2 * max(p.photo.max() for p in _inputs(table))
@@ -99,7 +102,13 @@ def test_clipped_highlight_turns_off_the_brightest_peak_rule(default_basis):
     clipped = pipeline.run(default_basis, _inputs(table, clip_level=level), told).regions[0]
     assert clipped.counts["saturated"] > 0
     assert clipped.skipped_assumptions.get("brightest") == [0]
+    notes = pipeline.region_notes(clipped.summary())
+    n, seen = clipped.counts["saturated"], clipped.counts["saturated"] + clipped.counts["observed"]
+    assert len(notes) == 1 and notes[0].startswith(f"{n} of its pixels ({100 * n / seen:.1f} %")
+    assert "peak's height was not photographed" in notes[0]
     not_told = pipeline.PipelineSettings(n_samples=12, n_trials=2, seed=1)
     plain = pipeline.run(default_basis, _inputs(table), not_told).regions[0]
     assert plain.counts["saturated"] == 0
     assert "brightest" not in plain.skipped_assumptions
+    assert pipeline.region_notes(plain.summary()) == []
+
