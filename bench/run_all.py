@@ -22,7 +22,7 @@ SCRIPTS = ("core_bench.py", "basis_build_bench.py", "measured_bench.py", "fig4_b
            "sampler_bench.py", "photo_bench.py", "normal_correction_bench.py",
            "trial_combination_bench.py", "refit_bench.py", "irradiance_bench.py",
            "optics_bench.py", "footprint_bench.py", "photo_check_bench.py",
-           "photo_count_bench.py", "refit_draw_bench.py",
+           "photo_count_bench.py", "refit_draw_bench.py", "clipping_bench.py",
            "texture_bench.py", "texture_figure.py", "principled_bench.py",
            "reliable_bench.py",
            "cycles_kl_bench.py", "kl_agreement_bench.py", "tradeoff.py", "extremes_bench.py",
