@@ -58,32 +58,28 @@ def main(argv=None) -> int:
     info = common.machine("clipped highlights: the white level given or not")
     names = common.pipeline_materials(args.quick)
     rows = []
-    for obj in objects:
-        for scan, arrays in photo_bench.scans(obj).items():
-            for name in names:
-                truth = common.heldout_table(name)
-                B = common.default_basis_without(name)
-                for seed in range(seeds):
-                    clean = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
-                    for share in SHARES:
-                        level = white_level(clean, share)
-                        inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01,
-                                                             seed=seed, clip_level=level)
-                        row = dict(object=obj, scan=scan, material=name, seed=seed,
-                                   share=share, level=level)
-                        for variant, given in (("not_given", None), ("given", level)):
-                            settings = pipeline.PipelineSettings(
-                                seed=seed, **SETTINGS,
-                                observation=observations.ObservationSettings(clip_level=given))
-                            t0 = time.perf_counter()
-                            region = pipeline.run(B, inputs, settings, regions=[0]).regions[0]
-                            row[variant] = float(metrics.sphere_error(region.table, truth))
-                            row[f"{variant}_table"] = region.refinement.get("table")
-                            row[f"{variant}_saturated"] = int(region.counts.get("saturated", 0))
-                            row[f"{variant}_seconds"] = time.perf_counter() - t0
-                        rows.append(row)
-                        print(f"{obj} {scan} {name} seed {seed} clipped {share:.0%}: not given "
-                              f"{row['not_given']:.3f}, given {row['given']:.3f}", flush=True)
+    for obj, scan, arrays, name, truth, B in photo_bench.cases(objects, names):
+        for seed in range(seeds):
+            clean = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
+            for share in SHARES:
+                level = white_level(clean, share)
+                inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01,
+                                                     seed=seed, clip_level=level)
+                row = dict(object=obj, scan=scan, material=name, seed=seed,
+                           share=share, level=level)
+                for variant, given in (("not_given", None), ("given", level)):
+                    settings = pipeline.PipelineSettings(
+                        seed=seed, **SETTINGS,
+                        observation=observations.ObservationSettings(clip_level=given))
+                    t0 = time.perf_counter()
+                    region = pipeline.run(B, inputs, settings, regions=[0]).regions[0]
+                    row[variant] = float(metrics.sphere_error(region.table, truth))
+                    row[f"{variant}_table"] = region.refinement.get("table")
+                    row[f"{variant}_saturated"] = int(region.counts.get("saturated", 0))
+                    row[f"{variant}_seconds"] = time.perf_counter() - t0
+                rows.append(row)
+                print(f"{obj} {scan} {name} seed {seed} clipped {share:.0%}: not given "
+                      f"{row['not_given']:.3f}, given {row['given']:.3f}", flush=True)
     summary = _summary(rows)
     doc = {"machine": common.machine_end(info), "materials": names, "seeds": list(range(seeds)),
            "shares": list(SHARES), "settings": SETTINGS, "summary": summary, "runs": rows}

@@ -133,27 +133,23 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     names = common.pipeline_materials(args.quick)
     rows = []
-    for obj in objects:
-        for scan, arrays in photo_bench.scans(obj).items():
-            for name in names:
-                truth = common.heldout_table(name)
-                B = common.default_basis_without(name)
-                photos = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=SEED)
-                albedo = energy.largest_albedo(truth)
-                for k in SCALES:
-                    inputs = [dataclasses.replace(p, irradiance=np.asarray(p.irradiance) / k)
-                              for p in photos]
-                    r = {"object": obj, "scan": scan, "material": name, "k": k,
-                         "measured": common.is_measured(name), "true_albedo": k * albedo,
-                         "shipped": row(run_once(B, inputs, held=False), truth, k)}
-                    if k > 1.0:
-                        r["held"] = row(run_once(B, inputs, held=True), truth, k)
-                    rows.append(r)
-                    print(f"{obj} {scan} {name} k={k:g} (albedo {k * albedo:.2f}): shipped "
-                          f"{r['shipped']['sphere']:.3f}"
-                          + (" refused" if r["shipped"]["refused"] else "")
-                          + (f", held {r['held']['sphere']:.3f}" if "held" in r else ""),
-                          flush=True)
+    for obj, scan, arrays, name, truth, B in photo_bench.cases(objects, names):
+        photos = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=SEED)
+        albedo = energy.largest_albedo(truth)
+        for k in SCALES:
+            inputs = [dataclasses.replace(p, irradiance=np.asarray(p.irradiance) / k)
+                      for p in photos]
+            r = {"object": obj, "scan": scan, "material": name, "k": k,
+                 "measured": common.is_measured(name), "true_albedo": k * albedo,
+                 "shipped": row(run_once(B, inputs, held=False), truth, k)}
+            if k > 1.0:
+                r["held"] = row(run_once(B, inputs, held=True), truth, k)
+            rows.append(r)
+            print(f"{obj} {scan} {name} k={k:g} (albedo {k * albedo:.2f}): shipped "
+                  f"{r['shipped']['sphere']:.3f}"
+                  + (" refused" if r["shipped"]["refused"] else "")
+                  + (f", held {r['held']['sphere']:.3f}" if "held" in r else ""),
+                  flush=True)
     doc = {"machine": common.machine_end(info), "materials": names, "scales": list(SCALES),
            "settings": f"Balanced (PipelineSettings(seed={SEED})), 3 photos, 1 % noise, "
                        "the irradiance given divided by k, scored against k x truth",

@@ -103,6 +103,18 @@ def scans(obj: str, **options) -> dict:
     return {"scan": degraded, "exact": exact_scan(degraded)}
 
 
+def cases(objects, names):
+    """The pipeline benches' cases: per object (outer), each of its :func:`scans`,
+    then each held-out material of ``names``; yields ``(object, scan, arrays, name,
+    truth, basis)`` with the material's true table (``common.heldout_table``) and
+    the default basis that never saw it (``common.default_basis_without``)."""
+    for obj in objects:
+        for scan, arrays in scans(obj).items():
+            for name in names:
+                yield (obj, scan, arrays, name, common.heldout_table(name),
+                       common.default_basis_without(name))
+
+
 def main(argv=None) -> int:
     args, objects = common.pipeline_bench_arguments(__doc__, argv, 3, "5 materials, 1 seed")
     if args is None:

@@ -64,17 +64,13 @@ def main(argv=None) -> int:
     info = common.machine("the refit's KL guard and normal-error model, issue 15")
     names = common.pipeline_materials(args.quick)
     rows = []
-    for obj in objects:
-        for scan, arrays in photo_bench.scans(obj).items():
-            for name in names:
-                truth = common.heldout_table(name)
-                B = common.default_basis_without(name)
-                for seed in range(args.seeds):
-                    row = _run(arrays, truth, B, seed, sigmas)
-                    rows.append(dict(object=obj, scan=scan, material=name, seed=seed,
-                                     measured=common.is_measured(name), **row))
-                    print(f"{obj} {scan} {name} {seed}: " + ", ".join(
-                        f"{k} {v:.3f}" for k, v in row["sphere"].items()), flush=True)
+    for obj, scan, arrays, name, truth, B in photo_bench.cases(objects, names):
+        for seed in range(args.seeds):
+            row = _run(arrays, truth, B, seed, sigmas)
+            rows.append(dict(object=obj, scan=scan, material=name, seed=seed,
+                             measured=common.is_measured(name), **row))
+            print(f"{obj} {scan} {name} {seed}: " + ", ".join(
+                f"{k} {v:.3f}" for k, v in row["sphere"].items()), flush=True)
     summary = _summary(rows)
     doc = {"machine": common.machine_end(info), "materials": names,
            "seeds": list(range(args.seeds)), "sigmas_deg": sigmas,
