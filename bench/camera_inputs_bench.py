@@ -28,7 +28,8 @@ the spread of the random-subset trials). The table read back from
   from EXIF (the first photo, x1, is the reference).
 - ``clipped``: 8-bit sRGB PNG exposed so that about 2.5 % of the object's pixels
   (EXR alpha >= 0.5, all photos) hold code 255 in some channel; the product finds
-  them at the file's largest code and excludes them. ``irradiance = s``, as above.
+  them at the file's largest code, says so and uses them at their value (since
+  2026-12-07; it left them out before). ``irradiance = s``, as above.
 - ``distorted_<lens>``: the EXR photos resampled through an OPENCV lens (cubic
   spline of the pinhole photo at the pinhole position of each distorted pixel)
   and the COLMAP model rewritten through pycolmap with that camera model

@@ -140,8 +140,8 @@ def capture_notes(capture: dict) -> list[str]:
     """One line per thing done to the photos that the user should know: a scaled,
     partial (an EXR's data window smaller than its frame), multilayer or undistorted
     photo, a float photo clipped at a white level it does not state, an exposure
-    scale, saturated pixels, the irradiance rule, and each photo's warnings (its
-    ``notes``: a photo partly inconsistent with its light,
+    scale, saturated pixels (left out) and clipped ones (used), the irradiance rule,
+    and each photo's warnings (its ``notes``: a photo partly inconsistent with its light,
     ``core.capture.photo_checks``)."""
     lines = []
     photos = capture.get("photos", [])
@@ -161,6 +161,12 @@ def capture_notes(capture: dict) -> list[str]:
             lines.append(p["exposure"])
         if p.get("saturated_pixels"):
             lines.append(f"{name}: {p['saturated_pixels']} saturated pixels excluded")
+        if p.get("clipped_pixels"):
+            lines.append(
+                f"{name}: {p['clipped_pixels']} pixels on the scan hold the file's largest "
+                "code, a highlight clipped at the camera's white level: its peak is not in "
+                "the photo (a shorter exposure would hold it); they are used at that value "
+                "(a Saturation Level of 1.0 leaves them out)")
         uncertainty = p.get("light", {}).get("uncertainty_deg")
         if uncertainty is not None:
             lines.append(f"{name}: sphere-probe light, uncertainty {uncertainty:.2f} deg")

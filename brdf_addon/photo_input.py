@@ -4,9 +4,10 @@ For each entry of ``scene.brdf.photos`` :func:`gather_photo`:
 
 1. reads the file as linear radiance (``core.capture.photo_io``: EXR and 16/32-bit TIFF
    linear, 8/16-bit PNG and JPEG sRGB unless the file or the user says linear,
-   camera RAW only where OpenImageIO has LibRaw) and its saturated pixels (the
-   file's largest code, or the Saturation Level setting, on the file's own
-   values);
+   camera RAW only where OpenImageIO has LibRaw), the pixels clipped at the file's
+   own white level (an integer file's largest code, a float file's plateau: used
+   at their value and reported) and the saturated ones (at or above the Saturation
+   Level setting, on the file's own values: left out);
 2. checks the photo's size against its camera's: the same, or the same aspect
    ratio scaled (said in the report); anything else is an error, and so is a
    photo under 4 pixels a side (``core.capture.photo_checks``);
@@ -115,7 +116,11 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     # pixels pile up at the largest value (said, not removed), unless the user gave it
     read = photo_io.read_photo_file(path, photo.color_space,
                                     find_clipping=settings.clip_level <= 0)
-    radiance, saturated = read.radiance, read.saturated
+    # pixels at the file's own white level (an integer file's largest code) are used at
+    # their value and said; only the user's Saturation Level leaves pixels out: on a
+    # blunted scan the clipped pixels used give the better table (bench/clipping_bench.py)
+    radiance, clipped = read.radiance, read.saturated
+    saturated = np.zeros_like(clipped)
     h, w = radiance.shape[:2]
     want, source = gbuffer.camera_resolution(photo.camera, scene)
     want = (int(want[0]), int(want[1]))
@@ -158,6 +163,7 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
         args = (model, params, *want)
         radiance = undistort.undistort_image(radiance, *args)
         saturated = undistort.undistort_mask(saturated, *args)
+        clipped = undistort.undistort_mask(clipped, *args)
         if mask is not None:
             mask = undistort.undistort_mask(mask, *args)
         if reference_mask is not None:
@@ -204,15 +210,18 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     if exposure_note:
         report["exposure"] = exposure_note
     report["saturated_pixels"] = int(np.count_nonzero(saturated & g.mask))
+    if not read.is_float:  # a float file's clipping is the plateau's note (clipped_at)
+        report["clipped_pixels"] = int(np.count_nonzero(clipped & ~saturated & g.mask))
     reference = None
     if reference_mask is not None:
         if photo.reference_kind == "SCAN":  # n.l of the scan, from its G-buffer
             region = reference_mask & g.mask
             reference = irradiance.Reference(radiance=radiance[region], cosine=cosine[region],
-                                             saturated=saturated[region])
+                                             saturated=(saturated | clipped)[region])
         else:  # a grey card facing the light
             region = reference_mask
-            reference = irradiance.grey_card(radiance[region], 1.0, saturated[region])
+            reference = irradiance.grey_card(radiance[region], 1.0,
+                                             (saturated | clipped)[region])
         report["reference"] = {"kind": photo.reference_kind.lower(),
                                "pixels": int(np.count_nonzero(region))}
     return GatheredPhoto(

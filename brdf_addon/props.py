@@ -258,8 +258,9 @@ class BRDFSettings(PropertyGroup):
     clip_level: FloatProperty(name="Saturation Level", default=0.0, min=0.0,
                               description="Pixels with a channel at or above this linear "
                               "value of the file (before exposure scaling) are saturated and "
-                              "dropped; integer files are also clipped at their largest code "
-                              "(0 = only that)")
+                              "left out (0 = none). A file's own white level (an integer "
+                              "file's largest code, 1.0; a float file's plateau) is only "
+                              "reported: those pixels are used at their value")
     scene_up: FloatVectorProperty(name="Scene Up", size=3, subtype="DIRECTION",
                                   default=(0.0, 0.0, 1.0),
                                   description="World direction of the sky (the sun's zenith); "

@@ -18,6 +18,7 @@ from image_files import write_image  # noqa: E402
 from brdf_reconstruct.brdf_addon import (  # noqa: E402
     gathering,
     light_sources,
+    photo_input,
     photo_list,
 )
 from brdf_reconstruct.core.capture import photo_io, sun  # noqa: E402
@@ -185,23 +186,41 @@ def test_without_references_irradiance_is_assumed_equal_and_said(tiny):
     assert any("assumed equal" in line for line in capture["irradiance"])
 
 
-def test_saturated_pixels_of_an_8bit_photo_are_excluded_and_counted(tiny):
-    """Exposed 3 times too long, the sphere's bright side clips at 255: those pixels
-    are counted and never reach the fit."""
+def test_clipped_pixels_of_an_8bit_photo_are_counted_and_used_unless_the_level_leaves_them_out(
+        tiny):
+    """Exposed 3 times too long, the sphere's bright side clips at 255. Those pixels
+    are counted and said, and used at their value (on a blunted scan that gives the
+    better table: bench/results/clipping.json); a Saturation Level of 1.0 (the
+    file's largest code) leaves them out, counted as saturated. A clipped pixel
+    never sets an irradiance reference either way."""
     codes = _srgb_8bit(tiny["linear"] * 3.0)
     path = write_image(tiny["dir"] / "hot.png", codes, oiio.UINT8)
     _entry(tiny, path)
     inputs, capture = gathering.gather_capture(tiny["scene"])
     clipped = np.any(codes == 255, axis=-1) & (inputs[0].region >= 0)
     assert clipped.sum() > 20
-    assert capture["photos"][0]["saturated_pixels"] == int(clipped.sum())
-    np.testing.assert_array_equal(inputs[0].saturated & (inputs[0].region >= 0), clipped)
+    assert capture["photos"][0]["clipped_pixels"] == int(clipped.sum())
+    assert capture["photos"][0]["saturated_pixels"] == 0 and not inputs[0].saturated.any()
     assert bpy.ops.brdf.reconstruct() == {"FINISHED"}
     report = json.loads((tiny["dir"] / "out" / "report.json").read_text())
-    assert report["photos"][0]["removed"]["saturated"] > 0
-    # and the Results panel says so
-    notes = json.loads(tiny["scene"].brdf.capture_notes)
-    assert f"hot.png: {int(clipped.sum())} saturated pixels excluded" in notes
+    assert report["photos"][0]["removed"]["saturated"] == 0
+    notes = json.loads(tiny["scene"].brdf.capture_notes)  # the Results panel says so
+    assert any(line.startswith(f"hot.png: {int(clipped.sum())} pixels on the scan hold the "
+                               "file's largest code") for line in notes)
+    everywhere = write_image(tiny["dir"] / "all.png", np.full((48, 48, 1), 255, np.uint8),
+                             oiio.UINT8)
+    entry = tiny["scene"].brdf.photos[0]
+    entry.reference_kind, entry.reference_mask_path = "SCAN", str(everywhere)
+    reference = photo_input.gather_photo(tiny["scene"], entry).reference
+    assert int(np.count_nonzero(reference.saturated)) == int(clipped.sum())
+    entry.reference_kind = "NONE"
+    tiny["scene"].brdf.clip_level = 1.0  # the user's level: left out
+    inputs, capture = gathering.gather_capture(tiny["scene"])
+    assert capture["photos"][0]["saturated_pixels"] == int(clipped.sum())
+    assert capture["photos"][0]["clipped_pixels"] == 0
+    np.testing.assert_array_equal(inputs[0].saturated & (inputs[0].region >= 0), clipped)
+    assert f"hot.png: {int(clipped.sum())} saturated pixels excluded" in \
+        gathering.capture_notes(capture)
 
 
 def test_silhouette_margin_shrinks_the_mask(tiny):
