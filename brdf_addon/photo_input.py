@@ -11,8 +11,7 @@ For each entry of ``scene.brdf.photos`` :func:`gather_photo`:
 2. checks the photo's size against its camera's: the same, or the same aspect
    ratio scaled (said in the report); anything else is an error, and so is a
    photo under 4 pixels a side (``core.capture.photo_checks``);
-3. reads the mask image; refuses NaN or Inf inside it, values no camera
-   records (more than 2^32 times the photo's median) and a black photo, one
+3. reads the mask image; refuses NaN or Inf inside it and a black photo, one
    sentence each (``photo_checks``);
 4. undistorts photo, masks and saturation through the COLMAP camera model
    (``core.capture.undistort``) when the camera has lens distortion, so the pixels line
@@ -21,8 +20,9 @@ For each entry of ``scene.brdf.photos`` :func:`gather_photo`:
    (with Pixel Footprint where a refit reads it, also the scan's normals at 2 x 2
    points of each pixel, ``core.method.gbuffers.footprint_normals``);
    the scan's silhouette is the mask, shrunk by the photo's silhouette margin;
-   refuses a photo black over the scan or brighter where the G-buffer says
-   shadow than where it says light, and notes one that is partly so
+   refuses a photo black over the scan, one with values no camera records there
+   (more than 2^32 times the median of the scan's pixels), or one brighter where
+   the G-buffer says shadow than where it says light, and notes one that is partly so
    (``photo_checks.light_consistency``) or holds values below 0 on the scan beyond
    a black level's noise (``photo_checks.negative_note``; the photo's ``notes``);
 6. applies the exposure scale (user, or EXIF shutter/aperture/ISO through
@@ -141,7 +141,6 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
                              f"frame's {w * h} pixels (its data window); only those are "
                              "used")
     photo_io.check_finite(radiance, photo.name, mask)
-    photo_checks.check_range(radiance, photo.name, mask)
     photo_checks.check_not_black(radiance, photo.name, mask)
     if settings.clip_level > 0:  # on the file's values, before any scaling
         saturated = saturated | np.any(radiance >= settings.clip_level, axis=-1)
@@ -196,6 +195,7 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
         report["silhouette_margin_px"] = int(photo.silhouette_margin)
     usable = g.mask if mask is None else g.mask & mask  # the scan's pixels the run uses
     photo_checks.check_scan_not_black(radiance, photo.name, usable)
+    photo_checks.check_range(radiance, photo.name, usable, where=" on the scan")
     consistency = photo_checks.light_consistency(radiance, cosine, g.visibility, g.region,
                                                  usable)
     report["light_check"] = consistency.as_dict()

@@ -3,8 +3,9 @@
 Each check takes arrays and either passes, raises ValueError with one sentence
 naming the photo and what to do, or (where a user could mean it) returns a
 note for the report. The add-on calls them from ``brdf_addon/photo_input.py``:
-the size, range and black checks right after reading a photo, the scan and
-light checks once the photo's G-buffers exist, so a bad photo costs seconds.
+the size and black checks right after reading a photo, the range, scan and
+light checks once the photo's G-buffers exist (on the scan's pixels), so a bad
+photo costs seconds.
 
 Units and frames: ``radiance`` is (H, W, 3) float linear radiance in the
 file's units (row 0 = top); ``cosine`` is (H, W) n.l of the G-buffer's normal
@@ -122,12 +123,17 @@ def check_not_black(radiance: np.ndarray, name: str, mask: np.ndarray | None = N
                          "the file, its exposure and that it is the lit photo")
 
 
-def check_range(radiance: np.ndarray, name: str, mask: np.ndarray | None = None) -> None:
+def check_range(radiance: np.ndarray, name: str, mask: np.ndarray | None = None,
+                where: str | None = None) -> None:
     """ValueError (one sentence) when pixels (inside ``mask``) are more than
-    ``MAX_RANGE`` times the photo's median non-zero magnitude, in either sign.
+    ``MAX_RANGE`` times the median non-zero magnitude there, in either sign.
 
     radiance: (H, W, 3) linear radiance (NaN/Inf are ignored here: see
-    ``photo_io.check_finite``); mask: optional (H, W) bool.
+    ``photo_io.check_finite``); mask: optional (H, W) bool; where: the words for
+    the mask in the sentence (default " inside its mask"). The add-on checks the
+    scan's pixels the run reads: over a whole frame, a black background's float
+    dust (1e-17 from a resampled EXR) is the median of its non-zero pixels, and
+    every lit pixel would be 2^32 times it.
     """
     magnitude, level = _magnitudes(_checked(radiance, mask))
     if level is None:
@@ -136,7 +142,8 @@ def check_range(radiance: np.ndarray, name: str, mask: np.ndarray | None = None)
     count = int(np.count_nonzero(beyond))
     if count:
         pixels = "pixel" if count == 1 else "pixels"
-        raise ValueError(f"photo {name} has {count} {pixels}{_where(mask)} more than 2^32 "
+        place = _where(mask) if where is None else where
+        raise ValueError(f"photo {name} has {count} {pixels}{place} more than 2^32 "
                          f"times its median value {level:.3g} (up to "
                          f"{magnitude[beyond].max():.3g}), which no camera records: fix "
                          "the file or mask them out")

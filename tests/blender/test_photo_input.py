@@ -223,6 +223,22 @@ def test_clipped_pixels_of_an_8bit_photo_are_counted_and_used_unless_the_level_l
         gathering.capture_notes(capture)
 
 
+def test_a_photo_on_black_with_float_dust_in_its_background_is_read(tiny):
+    """An undistorted (resampled) EXR of the object on black holds float dust about
+    1e-17 where the background was 0. Its range is checked on the scan's pixels, so
+    it runs; before, the dust was the frame's median and every lit pixel was refused
+    as 2^32 times it (the camera-inputs bench's lens photos, 2026-12-07)."""
+    dusty = tiny["linear"].copy()
+    rng = np.random.default_rng(0)
+    black = np.all(dusty == 0.0, axis=-1)
+    assert black.mean() > 0.5  # the background is most of the frame
+    dusty[black] = np.abs(rng.normal(0.0, 1e-17, (int(black.sum()), 3)))
+    path = write_image(tiny["dir"] / "dusty.exr", dusty.astype(np.float32), oiio.FLOAT)
+    entry = _entry(tiny, path)
+    gathered = photo_input.gather_photo(tiny["scene"], entry)
+    np.testing.assert_array_equal(gathered.input.photo, dusty.astype(np.float32))
+
+
 def test_silhouette_margin_shrinks_the_mask(tiny):
     p = _entry(tiny, tiny["photo"])
     inputs, _ = gathering.gather_capture(tiny["scene"])

@@ -295,3 +295,21 @@ def test_too_few_pixels_say_nothing():
     c = photo_checks.light_consistency(photo, cosine, visibility, region, few)
     assert c.shadow_to_lit is None and c.dark_where_lit is None
     assert photo_checks.check_light(c, "p.exr") == []
+
+
+def test_a_black_backgrounds_float_dust_does_not_make_the_lit_scan_out_of_range():
+    """A resampled (undistorted) EXR of an object on black holds float dust about
+    1e-17 in its background: over the whole frame that is the median of the non-zero
+    pixels, and every lit pixel is 2^32 times it. Over the scan's pixels, which the
+    add-on checks, the photo is in range, and a 1e30 there is still refused."""
+    rng = np.random.default_rng(2)
+    photo = np.abs(rng.normal(0.0, 1e-17, (32, 32, 3)))  # the background's dust
+    scan = np.zeros((32, 32), bool)
+    scan[12:20, 12:20] = True  # the object: 6 % of the frame
+    photo[scan] = rng.uniform(0.02, 0.17, (scan.sum(), 3))
+    with pytest.raises(ValueError, match="more than 2\\^32 times its median value 1"):
+        photo_checks.check_range(photo, "p.exr")  # the whole frame: the dust's median
+    photo_checks.check_range(photo, "p.exr", scan, where=" on the scan")
+    photo[15, 15] = 1e30
+    with pytest.raises(ValueError, match=r"^photo p\.exr has 1 pixel on the scan more than "):
+        photo_checks.check_range(photo, "p.exr", scan, where=" on the scan")
