@@ -135,9 +135,9 @@ def test_pixels_of_1e30_are_refused_with_their_count(tiny):
     photo[20, 20:24] = 1e30  # four pixels on the sphere
     path = write_image(tiny["dir"] / "hot.exr", photo, oiio.FLOAT)
     _entry(tiny, path)
-    _refused(tiny, [path], r"^Error: Photo hot\.exr has 4 pixels more than 2\^32 times its "
-                           r"median value .* \(up to 1e\+30\), which no camera records: fix "
-                           "the file or mask them out")
+    _refused(tiny, [path], r"^Error: Photo hot\.exr has 4 pixels on the scan more than 2\^32 "
+                           r"times its median value .* \(up to 1e\+30\), which no camera "
+                           r"records: fix the file or mask them out")
 
 
 def test_a_photo_lit_from_the_opposite_side_is_refused(tiny):
