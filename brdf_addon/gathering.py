@@ -139,8 +139,8 @@ def capture_inputs(gathered) -> tuple[list[pipeline.PhotoInput], dict]:
 def capture_notes(capture: dict) -> list[str]:
     """One line per thing done to the photos that the user should know: a scaled,
     partial (an EXR's data window smaller than its frame), multilayer or undistorted
-    photo, a float photo clipped at a white level it does not state, an exposure
-    scale, saturated pixels (left out) and clipped ones (used), the irradiance rule,
+    photo, an exposure scale, saturated pixels (left out) and the ones clipped at the
+    file's own white level (used), the irradiance rule,
     and each photo's warnings (its ``notes``: a photo partly inconsistent with its light,
     ``core.capture.photo_checks``)."""
     lines = []
@@ -153,8 +153,6 @@ def capture_notes(capture: dict) -> list[str]:
             lines.append(f"{name}: {p['partial']}")
         if p.get("layer"):
             lines.append(f"{name}: colour read from its layer {p['layer']}")
-        if p.get("clipped_at"):
-            lines.append(f"{name}: {p['clipped_at']}")
         if p.get("undistorted"):
             lines.append(f"{name}: undistorted ({p['undistorted']})")
         if p.get("exposure") and p.get("exposure_scale", 1.0) != 1.0:
@@ -163,10 +161,11 @@ def capture_notes(capture: dict) -> list[str]:
             lines.append(f"{name}: {p['saturated_pixels']} saturated pixels excluded")
         if p.get("clipped_pixels"):
             lines.append(
-                f"{name}: {p['clipped_pixels']} pixels on the scan hold the file's largest "
-                "code, a highlight clipped at the camera's white level: its peak is not in "
-                "the photo (a shorter exposure would hold it); they are used at that value "
-                "(a Saturation Level of 1.0 leaves them out)")
+                f"{name}: {p['clipped_pixels']} pixels on the scan are at "
+                f"{p['white_level']}, a highlight "
+                "clipped at the camera's white level: its peak is not in the photo (a "
+                "shorter exposure or a merged bracket would hold it); they are used at that "
+                "value (a Saturation Level at or below it leaves them out)")
         uncertainty = p.get("light", {}).get("uncertainty_deg")
         if uncertainty is not None:
             lines.append(f"{name}: sphere-probe light, uncertainty {uncertainty:.2f} deg")

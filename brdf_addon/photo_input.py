@@ -92,18 +92,14 @@ def check_size(name: str, camera_name: str, photo_size, want, source: str) -> st
                      f"{cw}x{ch} ({source}), a different aspect ratio")
 
 
-def clipped_at(radiance, plateau) -> str:
-    """The report's sentence for a float photo whose brightest pixels pile up at its
-    largest value: ``radiance`` (H, W, 3), ``plateau`` (3,) per channel that value,
-    NaN where a channel has none (``photo_io.Photo.plateau``)."""
-    with np.errstate(invalid="ignore"):
-        at = int(np.count_nonzero(np.any(radiance >= plateau, axis=-1)))  # NaN: never
+def white_level(read: photo_io.Photo) -> str:
+    """The file's own white level in words: an integer file's largest code, or a float
+    file's plateau per channel (``photo_io.Photo.plateau``)."""
+    if read.plateau is None:
+        return "the file's largest code"
     levels = ", ".join(f"{name} {level:.6g}" for name, level in zip(
-        ("red", "green", "blue"), plateau, strict=True) if np.isfinite(level))
-    return (f"its brightest {at} pixels pile up at one value ({levels}), as a highlight "
-            "clipped at the camera's white level does: the highlight's peak is not in "
-            "the photo (a shorter exposure or a merged bracket would hold it); they are "
-            "used at that value (set the Saturation Level to leave them out)")
+        ("red", "green", "blue"), read.plateau, strict=True) if np.isfinite(level))
+    return f"the file's largest value, where its brightest pixels pile up ({levels})"
 
 
 def gather_photo(scene, photo, exposure_scale: float = 1.0,
@@ -112,13 +108,12 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     Raises ValueError (one sentence) for a bad photo."""
     settings = scene.brdf
     path = bpy.path.abspath(photo.filepath)
-    # a float file states no white level: a highlight clipped at one is found where the
-    # pixels pile up at the largest value (said, not removed), unless the user gave it
+    # pixels at the file's own white level (an integer file's largest code; a float
+    # file's plateau, looked for unless the user gave the level) are used at their value
+    # and said; only the user's Saturation Level leaves pixels out: on a blunted scan
+    # the clipped pixels used give the better table (bench/clipping_bench.py)
     read = photo_io.read_photo_file(path, photo.color_space,
                                     find_clipping=settings.clip_level <= 0)
-    # pixels at the file's own white level (an integer file's largest code) are used at
-    # their value and said; only the user's Saturation Level leaves pixels out: on a
-    # blunted scan the clipped pixels used give the better table (bench/clipping_bench.py)
     radiance, clipped = read.radiance, read.saturated
     saturated = np.zeros_like(clipped)
     h, w = radiance.shape[:2]
@@ -131,8 +126,6 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     mask = None
     if photo.mask_path:
         mask = photo_io.read_mask(bpy.path.abspath(photo.mask_path), (h, w))
-    if read.plateau is not None and np.any(np.isfinite(read.plateau)):
-        report["clipped_at"] = clipped_at(read.radiance, read.plateau)
     if read.layer is not None:  # a multilayer file: its colour layer, by name
         report["layer"] = read.layer
     if read.covered is not None:  # the file holds part of its frame: only that is used
@@ -210,8 +203,9 @@ def gather_photo(scene, photo, exposure_scale: float = 1.0,
     if exposure_note:
         report["exposure"] = exposure_note
     report["saturated_pixels"] = int(np.count_nonzero(saturated & g.mask))
-    if not read.is_float:  # a float file's clipping is the plateau's note (clipped_at)
-        report["clipped_pixels"] = int(np.count_nonzero(clipped & ~saturated & g.mask))
+    report["clipped_pixels"] = int(np.count_nonzero(clipped & ~saturated & g.mask))
+    if report["clipped_pixels"]:
+        report["white_level"] = white_level(read)
     reference = None
     if reference_mask is not None:
         if photo.reference_kind == "SCAN":  # n.l of the scan, from its G-buffer

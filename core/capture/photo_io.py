@@ -129,10 +129,8 @@ class Photo:
         that value is a plateau (:func:`plateau_levels`: a highlight clipped at a
         white level the file does not state), NaN where the channel has none; None
         where not looked for (integer files, a white level given, or not asked).
-        Pixels at a plateau are not marked ``saturated``: the caller says so to the
-        user, who may give the white level (measured: on blunted scans a clipped
-        highlight kept at its clipped value gives the better table, on exact
-        normals the one left out; docs/results.md).
+        Pixels at a plateau are ``saturated``, as an integer file's at its largest
+        code: at the file's own white level.
     """
 
     radiance: np.ndarray
@@ -250,7 +248,8 @@ def read_photo_file(path, color_space: str = "AUTO",
         the largest code.
     find_clipping: for a float file without ``white_level``, look for a channel
         whose largest value the pixels pile up at, as at a white level
-        (:func:`plateau_levels`; ``Photo.plateau``; the pixels are left as they are).
+        (:func:`plateau_levels`; ``Photo.plateau``); the pixels there are
+        ``saturated``.
 
     Raises ValueError (one sentence naming the file) for a missing,
     unreadable, truncated or corrupt file, a camera RAW file this build
@@ -284,6 +283,8 @@ def read_photo_file(path, color_space: str = "AUTO",
     plateau = None
     if find_clipping and pix.is_float and white_level is None:
         plateau = plateau_levels(radiance)
+        with np.errstate(invalid="ignore"):  # NaN (no plateau) is never reached
+            saturated |= np.any(radiance >= plateau, axis=-1)
     nonfinite = int(np.count_nonzero(~np.all(np.isfinite(radiance), axis=-1)))
     return Photo(radiance=radiance, saturated=saturated, encoding=encoding,
                  encoding_reason=reason, file_format=pix.file_format,

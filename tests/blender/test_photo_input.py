@@ -205,8 +205,8 @@ def test_clipped_pixels_of_an_8bit_photo_are_counted_and_used_unless_the_level_l
     report = json.loads((tiny["dir"] / "out" / "report.json").read_text())
     assert report["photos"][0]["removed"]["saturated"] == 0
     notes = json.loads(tiny["scene"].brdf.capture_notes)  # the Results panel says so
-    assert any(line.startswith(f"hot.png: {int(clipped.sum())} pixels on the scan hold the "
-                               "file's largest code") for line in notes)
+    assert any(line.startswith(f"hot.png: {int(clipped.sum())} pixels on the scan are at "
+                               "the file's largest code, a highlight") for line in notes)
     everywhere = write_image(tiny["dir"] / "all.png", np.full((48, 48, 1), 255, np.uint8),
                              oiio.UINT8)
     entry = tiny["scene"].brdf.photos[0]

@@ -292,9 +292,10 @@ def test_a_photo_holding_part_of_its_frame_is_used_where_it_holds_pixels(tiny):
 def test_a_float_photo_clipped_at_an_unstated_white_level_is_one_note(tiny):
     """The photo's highlight clipped at a level the EXR does not state (as a RAW
     converter writes a clipped camera photo) is found by its plateau and said in a
-    note that counts its pixels; they are used at their value, not removed
-    (docs/results.md measures why), and the photo's values are not changed. With the
-    user's Saturation Level the plateau is not looked for: the user's level rules."""
+    note that counts its pixels on the scan and gives the level; they are used at
+    their value, not removed (docs/results.md measures why), and the photo's values
+    are not changed. With the user's Saturation Level the plateau is not looked for:
+    the user's level rules, and those pixels are left out."""
     import OpenImageIO as oiio
 
     entry = _add_photo(tiny)
@@ -312,13 +313,18 @@ def test_a_float_photo_clipped_at_an_unstated_white_level_is_one_note(tiny):
                                      oiio.FLOAT))
     gathered = photo_input.gather_photo(tiny["scene"], entry)
     clipped = np.any(full.input.photo >= level, axis=-1)
-    assert f"its brightest {clipped.sum()} pixels pile up" in gathered.report["clipped_at"]
+    on_scan = int(np.count_nonzero(clipped & (full.input.region >= 0)))
+    assert gathered.report["clipped_pixels"] == on_scan > 0
+    assert f"{level:.6g}" in gathered.report["white_level"]
+    note = f"view0_clipped.exr: {on_scan} pixels on the scan are at the file's largest value"
+    assert any(line.startswith(note) for line in gathering.capture_notes(
+        {"photos": [gathered.report | {"name": "view0_clipped.exr"}]}))
     assert not gathered.input.saturated.any() and gathered.report["saturated_pixels"] == 0
     np.testing.assert_array_equal(gathered.input.photo, np.minimum(full.input.photo, level))
-    assert not full.input.saturated.any() and "clipped_at" not in full.report
+    assert not full.input.saturated.any() and full.report["clipped_pixels"] == 0
     tiny["scene"].brdf.clip_level = level  # the user's level: those pixels left out
     told = photo_input.gather_photo(tiny["scene"], entry)
-    assert "clipped_at" not in told.report
+    assert told.report["clipped_pixels"] == 0 and told.report["saturated_pixels"] == on_scan
     np.testing.assert_array_equal(told.input.saturated, clipped)
 
 
