@@ -294,8 +294,9 @@ def test_a_float_photo_clipped_at_an_unstated_white_level_is_one_note(tiny):
     converter writes a clipped camera photo) is found by its plateau and said in a
     note that counts its pixels on the scan and gives the level; they are used at
     their value, not removed (docs/results.md measures why), and the photo's values
-    are not changed. With the user's Saturation Level the plateau is not looked for:
-    the user's level rules, and those pixels are left out."""
+    are not changed; they never set an irradiance reference. With the user's
+    Saturation Level the plateau is not looked for: the user's level rules, and those
+    pixels are left out."""
     import OpenImageIO as oiio
 
     entry = _add_photo(tiny)
@@ -322,6 +323,12 @@ def test_a_float_photo_clipped_at_an_unstated_white_level_is_one_note(tiny):
     assert not gathered.input.saturated.any() and gathered.report["saturated_pixels"] == 0
     np.testing.assert_array_equal(gathered.input.photo, np.minimum(full.input.photo, level))
     assert not full.input.saturated.any() and full.report["clipped_pixels"] == 0
+    everywhere = write_image(tiny["photo"].with_name("all.png"),
+                             np.full(clipped.shape + (1,), 255, np.uint8), oiio.UINT8)
+    entry.reference_kind, entry.reference_mask_path = "SCAN", str(everywhere)
+    reference = photo_input.gather_photo(tiny["scene"], entry).reference
+    assert int(np.count_nonzero(reference.saturated)) == on_scan  # never a reference
+    entry.reference_kind = "NONE"
     tiny["scene"].brdf.clip_level = level  # the user's level: those pixels left out
     told = photo_input.gather_photo(tiny["scene"], entry)
     assert told.report["clipped_pixels"] == 0 and told.report["saturated_pixels"] == on_scan
