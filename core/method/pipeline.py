@@ -435,8 +435,8 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     (``refine_inputs`` None).
 
     The energy refinement is judged by the photos: the chosen trial is also
-    refitted to every observed pixel (``refine.photo_consistent``; unless the
-    photos were ``normalised``, it and its held-out refits reflect no more than
+    refitted to every observed pixel (``refine.photo_consistent``; it and its
+    held-out refits reflect no more than
     ``refine.ALBEDO_BOUND`` of the light they receive, unless that bound keeps it
     from a photo the free refit meets: then the irradiance given is too low for
     the photos, the refit is free and ``every_pixel["bound_refused"]`` says so;
@@ -481,9 +481,10 @@ def refine_chosen(result: RegionResult, photo_consistent: float | None = None,
     recorded.update(energy_per_photo=[float(r) for r in ratios], method=method,
                     trial=int(result.winner), energy_before=energy)
     # refitted to every pixel, a table reflects no more than a surface's limit of the
-    # light it receives (not on photos divided by a texture, whose table's level is
-    # relative to it), unless the photos say it reflects more (_bound_refused)
-    bound = None if inp.normalised else refine.ALBEDO_BOUND
+    # light it receives, unless the photos say it reflects more (_bound_refused); on
+    # photos divided by a texture too: the table is then at the region's mean colour,
+    # at or below its brightest texel's, which is a surface's
+    bound = refine.ALBEDO_BOUND
     readable = False  # does a refit to every pixel reproduce each photo to the judge?
     if method == "energy" and judge > 0.0:  # the photos judge first: read pixel by pixel?
         every, verdict = _every_pixel_verdict(

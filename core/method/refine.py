@@ -121,25 +121,30 @@ TRIAL_SHARE = 0.5
 # overshoot there (the exact aluminium of test_refine: 1.29 at 80 degrees, sphere
 # 0.04), so this costs such a refit on textured photos; on the texture bench (76
 # rows, seed 0) it moved only the random copper, for the better (docs/results.md).
-# Not on the user's own photos, whose refits are bounded instead (ALBEDO_BOUND): a
-# veto there refused exact Spot's free mirror refits that were far better on the
-# sphere than the energy refit (aluminium 0.22 against 0.58, silver 0.25 against
-# 0.80); bounded they are better still (0.12 to 0.17, photo bench, 3 seeds). A
-# refit kept by its own errors is not asked: the
-# held-out photos have judged it (the exact textured Spot's gold and copper
+# Those refits are bounded too since 2026-12-07 (ALBEDO_BOUND), so this veto
+# only catches a bounded refit that still overshoots (its bound is soft, or the
+# photos refused it). Not on untextured photos: a veto there refused exact Spot's
+# free mirror refits that were far better on the sphere than the energy refit
+# (aluminium 0.22 against 0.58, silver 0.25 against 0.80); bounded they are better
+# still (0.12 to 0.17, photo bench, 3 seeds). A refit kept by its own errors is not
+# asked: the held-out photos have judged it (the exact textured Spot's gold and copper
 # refits, sphere 0.04 and 0.13, reach 1.2 to 3.7)
 MAX_ALBEDO = 1.05
-# The every-pixel refits of untextured photos (pipeline.refine_chosen: the judge's
-# refit and its held-out refits) are bounded to reflect no more than this of the
+# The every-pixel refits (pipeline.refine_chosen: the judge's refit and its held-out
+# refits) are bounded to reflect no more than this of the
 # light they receive (photo_consistent's max_albedo): a surface's physical limit.
 # The photos see part of the table, and a free refit may fill the rest with more
 # light than it receives: on the exact scans the free refits of glossy plastic,
 # the polished aluminium and the silver reach 3 to 190 (docs/results.md). On the
 # photo bench (3 seeds, 19 materials) it left every degraded scan's run as it was;
 # on the exact scans Spot's mirrors 0.25 -> 0.14-0.17 and the bunny's glossy
-# plastic 0.26 -> 0.23-0.24, the gold 0.047 -> 0.055 worse. Not on photos
-# divided by a texture: there the table carries the light relative to that
-# texture, and its own level is not a surface's
+# plastic 0.26 -> 0.23-0.24, the gold 0.047 -> 0.055 worse. On photos divided
+# by a texture too (since 2026-12-07): their table is at the region's mean colour,
+# which reflects no more than its brightest texel, a surface; on the texture
+# bench's exact scans the shared shape's geometric mean 0.98 of before (the numpy
+# scene's glossy plastic 0.92 -> 0.52 and exact Spot's silver 0.81 -> 0.20 with the
+# scan's texture; the numpy scene's random copper 0.45 -> 0.83), the blunted scans
+# the same run for run (docs/results.md)
 ALBEDO_BOUND = 1.0
 # ... unless the photos themselves say the surface reflects more than that: where the
 # bounded refit presses against the bound (its largest albedo at least this share of
@@ -234,7 +239,7 @@ def photo_consistent(
     bound (``ALBEDO_SIGMA``) on the refit's directional albedo at the view angles
     of ``energy.CHECK_ANGLES_DEG`` (``energy.albedo_quadrature``): the photos see
     part of the table, and without it the refit may fill the rest with more light
-    than the surface receives (the pipeline bounds untextured photos' refits at
+    than the surface receives (the pipeline bounds its every-pixel refits at
     ``ALBEDO_BOUND``). Where ``samples`` carry a pixel footprint
     (``Samples.footprint``) and normal_sigma is 0, the radiance term predicts each
     pixel as the mean over its points (:func:`footprint_points`), as a camera's
