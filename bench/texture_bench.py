@@ -47,11 +47,17 @@ KL) and the default basis without the material (``common.default_basis_without``
 
 Writes ``bench/results/texture.json`` and ``texture.png`` (``--quick``:
 ``texture_quick.*``, 4 materials). About 34 minutes per seed on the 2-core machine.
+``--rows FILE [FILE ...]`` runs nothing: it summarises the rows of earlier runs
+(their result files, or JSON lists of rows), e.g. of the objects run side by side in
+two worktrees; the rows are written as they are, in the order given (``minutes``
+then None).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import pathlib
 import sys
 import time
 
@@ -373,6 +379,9 @@ def main(argv=None) -> int:
     parser.add_argument("--objects", default="numpy,spot")
     parser.add_argument("--seeds", type=int, default=1)
     parser.add_argument("--quick", action="store_true", help="4 materials")
+    parser.add_argument("--rows", nargs="+", metavar="FILE",
+                        help="summarise the rows of these earlier runs' files instead of "
+                        "running")
     parser.add_argument("--registration", choices=("truth", "scan"), default="truth",
                         help="Spot's texture on the truth's UV map (default; the degraded "
                         "scan's UVs misregister it) or on the scan's, as a photogrammetry "
@@ -393,9 +402,14 @@ def main(argv=None) -> int:
                      materials[-1]]
     rows = []
     t0 = time.perf_counter()
-    spot = spot_arrays() if "spot" in objects else None
+    if args.rows:
+        for path in args.rows:
+            loaded = json.loads(pathlib.Path(path).read_text())
+            rows += loaded["rows"] if isinstance(loaded, dict) else loaded
+    spot = spot_arrays() if "spot" in objects and not args.rows else None
     for obj, name, scan, seed in [(o, n, sc, sd) for o in objects for n in materials
-                                  for sc in SCANS for sd in range(args.seeds)]:
+                                  for sc in SCANS for sd in range(args.seeds)
+                                  if not args.rows]:
         rows.append(one(name, scan, seed, spot if obj == "spot" else None,
                         args.registration))
         r = rows[-1]
@@ -410,7 +424,8 @@ def main(argv=None) -> int:
     stem = "texture_quick" if args.quick else "texture"
     if args.registration == "scan":
         stem += "_scan_registered"
-    document = {"machine": common.machine_end(info), "minutes": (time.perf_counter() - t0) / 60,
+    minutes = None if args.rows else (time.perf_counter() - t0) / 60
+    document = {"machine": common.machine_end(info), "minutes": minutes,
                 "settings": {"resolution": RES, "texture": list(SHAPE), "noise": 0.01,
                              "photos": 3, **SETTINGS, "seeds": args.seeds},
                 "summary": summarise(rows), "rows": rows}

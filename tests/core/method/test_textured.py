@@ -120,6 +120,25 @@ def test_the_judged_refit_keeps_the_shared_shape_near_the_truth(runs):
     assert region.refinement["every_pixel"]["trial_share"] == refine.TRIAL_SHARE
 
 
+def test_the_alternation_goes_on_until_the_texture_settles(runs):
+    """Texture and shape trade slowly from round to round (each round's change of the
+    texture small, but in the same direction), so the alternation runs until the
+    texture moves by less than 0.1 % (``TextureSettings``: up to 8 rounds). Measured
+    (2026-12-07, the defaults' judged refit): the Lambert's shared shape 0.019 against
+    the untextured capture's 0.015 in 3 rounds (1.29x), 0.030 (2.07x) when it stopped
+    at a 0.5 % change after 2; the glossy plastic 0.077 against 0.066 (1.17x; 1.27x).
+    Asked: within 1.5x, and more than 2 rounds for the Lambert."""
+    assert TEXTURE.tolerance <= 0.001 and TEXTURE.rounds >= 8
+    result = runs["result"]
+    shared = metrics.sphere_error(result.result.regions[0].table, runs["truth"])
+    assert shared <= 1.5 * metrics.sphere_error(runs["untextured"], runs["truth"])
+    changes = [r["0"]["change"] for r in result.rounds[1:]]
+    assert len(result.rounds) == TEXTURE.rounds or changes[-1] < TEXTURE.tolerance
+    assert all(c >= TEXTURE.tolerance for c in changes[:-1])
+    if runs["name"] == "heldout_lambert_grey":
+        assert len(result.rounds) > 2
+
+
 def _texture(tex, model, table):
     """A measured RegionTexture of relative albedo ``tex`` ((texels, 3), mean 1)."""
     n = len(tex)
