@@ -402,14 +402,13 @@ def main(argv=None) -> int:
                      materials[-1]]
     rows = []
     t0 = time.perf_counter()
-    if args.rows:
-        for path in args.rows:
-            loaded = json.loads(pathlib.Path(path).read_text())
-            rows += loaded["rows"] if isinstance(loaded, dict) else loaded
-    spot = spot_arrays() if "spot" in objects and not args.rows else None
-    for obj, name, scan, seed in [(o, n, sc, sd) for o in objects for n in materials
-                                  for sc in SCANS for sd in range(args.seeds)
-                                  if not args.rows]:
+    for path in args.rows or ():  # earlier runs' rows: summarised, nothing run
+        loaded = json.loads(pathlib.Path(path).read_text())
+        rows += loaded["rows"] if isinstance(loaded, dict) else loaded
+    cases = [] if args.rows else [(o, n, sc, sd) for o in objects for n in materials
+                                  for sc in SCANS for sd in range(args.seeds)]
+    spot = spot_arrays() if any(c[0] == "spot" for c in cases) else None
+    for obj, name, scan, seed in cases:
         rows.append(one(name, scan, seed, spot if obj == "spot" else None,
                         args.registration))
         r = rows[-1]
