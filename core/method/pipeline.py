@@ -26,7 +26,6 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..brdf import energy
 from ..brdf.basis import Basis
 from ..progress import Cancelled as Cancelled  # re-exported: what run() raises
 from ..progress import check
@@ -583,8 +582,8 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
     - the refits predict the photo left out to ``trial_share`` of the chosen
       trial's own relative RMSE on the photos or less ("against the trial"; 0:
       not asked) and, if ``max_albedo`` is given, reflect no more than that of
-      the light it receives (its largest directional albedo,
-      ``core.brdf.energy.largest_albedo``).
+      the light it receives (its largest directional albedo, read on the
+      quadrature its bound holds, ``refine.reconstruction_albedo``).
     Returns the refit and a JSON-ready record (``relative_rmse``, ``per_photo``,
     ``held_out``, ``dependence``, ``trial_per_photo``, ``kept``, ``by``,
     ``largest_albedo`` (None where not asked), ``threshold``, ``trial_share``,
@@ -608,7 +607,8 @@ def _every_pixel_verdict(basis, start, observed, trusted, judge: float, cancelle
         elif (predicted and trial_share > 0.0 and np.all(np.isfinite(trial))
               and np.median(held_out) <= trial_share * np.median(trial)):
             if max_albedo is not None:  # better than the trial, but still a surface?
-                albedo = energy.largest_albedo(every.table)
+                # read on the cells its bound holds (refine.ALBEDO_NODES)
+                albedo = refine.reconstruction_albedo(every)
             if max_albedo is None or albedo <= max_albedo:
                 by = "against the trial"
         kept = by is not None
