@@ -47,6 +47,7 @@ KL) and the default basis without the material (``common.default_basis_without``
 
 Writes ``bench/results/texture.json`` and ``texture.png`` (``--quick``:
 ``texture_quick.*``, 4 materials). About 34 minutes per seed on the 2-core machine.
+``--scans exact`` (or ``blunted``) runs one scan and writes ``texture_exact.*``.
 ``--rows FILE [FILE ...]`` runs nothing: it summarises the rows of earlier runs
 (their result files, or JSON lists of rows), e.g. of the objects run side by side in
 two worktrees; the rows are written as they are, in the order given (``minutes``
@@ -382,13 +383,17 @@ def main(argv=None) -> int:
     parser.add_argument("--rows", nargs="+", metavar="FILE",
                         help="summarise the rows of these earlier runs' files instead of "
                         "running")
+    parser.add_argument("--scans", default=",".join(SCANS),
+                        help="the scans to run, of exact,blunted (fewer than both: "
+                        "writes texture_<scan>.*)")
     parser.add_argument("--registration", choices=("truth", "scan"), default="truth",
                         help="Spot's texture on the truth's UV map (default; the degraded "
                         "scan's UVs misregister it) or on the scan's, as a photogrammetry "
                         "texture is baked (writes texture_scan_registered.*)")
     args = parser.parse_args(argv)
     objects = common.listed(args.objects, OBJECTS, "--objects")
-    if objects is None:
+    scans = common.listed(args.scans, SCANS, "--scans")
+    if objects is None or scans is None:
         return 2
     if args.seeds < 1:
         print("error: --seeds must be at least 1", file=sys.stderr)
@@ -406,7 +411,7 @@ def main(argv=None) -> int:
         loaded = json.loads(pathlib.Path(path).read_text())
         rows += loaded["rows"] if isinstance(loaded, dict) else loaded
     cases = [] if args.rows else [(o, n, sc, sd) for o in objects for n in materials
-                                  for sc in SCANS for sd in range(args.seeds)]
+                                  for sc in scans for sd in range(args.seeds)]
     spot = spot_arrays() if any(c[0] == "spot" for c in cases) else None
     for obj, name, scan, seed in cases:
         rows.append(one(name, scan, seed, spot if obj == "spot" else None,
@@ -423,6 +428,8 @@ def main(argv=None) -> int:
     stem = "texture_quick" if args.quick else "texture"
     if args.registration == "scan":
         stem += "_scan_registered"
+    if len(scans) < len(SCANS):
+        stem += "_" + "_".join(scans)
     minutes = None if args.rows else (time.perf_counter() - t0) / 60
     document = {"machine": common.machine_end(info), "minutes": minutes,
                 "settings": {"resolution": RES, "texture": list(SHAPE), "noise": 0.01,
