@@ -122,12 +122,13 @@ TRIAL_SHARE = 0.5
 # so this costs such a refit on textured photos; on the texture bench (76 rows, seed 0)
 # it moved only the random copper, for the better (docs/results.md). Those refits are
 # bounded too since 2026-12-07 (ALBEDO_BOUND), so this veto only catches a bounded refit
-# that still overshoots (its bound is soft, or the photos refused it). Not on untextured
-# photos: a veto there refused exact Spot's free mirror refits that were far better on
-# the sphere than the energy refit (aluminium 0.22 against 0.58, silver 0.25 against
-# 0.80); bounded they are better still (0.12 to 0.17, photo bench, 3 seeds). A refit
-# kept by its own errors is not asked: the held-out photos have judged it (the exact
-# textured Spot's gold and copper refits, sphere 0.04 and 0.13, reach 1.2 to 3.7)
+# that still overshoots (its bound is soft; where the photos refuse the bound,
+# pipeline.refine_chosen's free refit is not asked). Not on untextured photos: a veto
+# there refused exact Spot's free mirror refits that were far better on the sphere than
+# the energy refit (aluminium 0.22 against 0.58, silver 0.25 against 0.80); bounded they
+# are better still (0.12 to 0.17, photo bench, 3 seeds). A refit kept by its own errors
+# is not asked: the held-out photos have judged it (the exact textured Spot's gold and
+# copper refits, sphere 0.04 and 0.13, reach 1.2 to 3.7)
 MAX_ALBEDO = 1.05
 # The every-pixel refits (pipeline.refine_chosen: the judge's refit and its held-out
 # refits) are bounded to reflect no more than this of the
