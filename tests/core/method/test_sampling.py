@@ -43,7 +43,7 @@ def _log_rmse_at(rec, truth, at) -> float:
 
 def test_log_rmse_at_all_cells_is_the_tables(default_basis, heldout_tables):
     """The test's error read at cells (``_log_rmse_at``) is ``metrics.brdf_log_rmse``
-    of the expanded table when read at every cell the basis holds (reference), and
+    of the expanded table when read at every cell of the table (reference), and
     the fixed 1-in-16 draw reads it to within 3 % (measured: 1.0 % for the gold, 1.0 %
     or less for five other held-out materials)."""
     B = default_basis
