@@ -14,7 +14,6 @@ def brdf_log_rmse(estimate: np.ndarray, reference: np.ndarray) -> float:
     centre is above the horizon and that the reference measured, all channels;
     ``c = cos(theta_l) cos(theta_v)`` at the cell centre. Dimensionless.
     """
-    wi, wo = merl.cell_directions()
     est = np.asarray(estimate, dtype=np.float64).reshape(3, -1)
     ref = np.asarray(reference, dtype=np.float64).reshape(3, -1)
     cells = np.flatnonzero(merl.valid_cells() & np.all(np.isfinite(ref), axis=0))
@@ -25,9 +24,30 @@ def brdf_log_rmse(estimate: np.ndarray, reference: np.ndarray) -> float:
     for start in range(0, len(cells), _BLOCK):
         block = slice(start, start + _BLOCK)
         idx = cells[block]
-        c = np.clip(wi[idx, 2] * wo[idx, 2], 0.0, 1.0)
-        np.subtract(np.log1p(est[:, idx] * c), np.log1p(ref[:, idx] * c), out=d[:, block])
+        _log_differences(est[:, idx], ref[:, idx], idx, out=d[:, block])
     return float(np.sqrt(np.mean(np.square(d, out=d))))
+
+
+def log_rmse_at(estimate_at: np.ndarray, reference: np.ndarray, cells: np.ndarray) -> float:
+    """:func:`brdf_log_rmse` over the flat cells ``cells`` (M,) only, for an estimate
+    known there alone (a reconstruction read at some cells, without its full table).
+    estimate_at: (M, 3) its values at ``cells``, 1/sr; reference: (3, 90, 90, 180).
+    The cells below the horizon or that the reference did not measure are left out,
+    as there. Over every cell it is :func:`brdf_log_rmse`."""
+    cells = np.asarray(cells, dtype=np.int64)
+    ref = np.asarray(reference, dtype=np.float64).reshape(3, -1)[:, cells]
+    keep = merl.valid_cells()[cells] & np.all(np.isfinite(ref), axis=0)
+    est = np.asarray(estimate_at, dtype=np.float64).T[:, keep]
+    d = _log_differences(est, ref[:, keep], cells[keep])
+    return float(np.sqrt(np.mean(d * d)))
+
+
+def _log_differences(estimate, reference, cells, out=None) -> np.ndarray:
+    """(3, M) ``ln(1 + rho_est c) - ln(1 + rho_ref c)`` at the flat cells (M,), each
+    table given there as (3, M); c as in :func:`brdf_log_rmse`."""
+    wi, wo = merl.cell_directions()
+    c = np.clip(wi[cells, 2] * wo[cells, 2], 0.0, 1.0)
+    return np.subtract(np.log1p(estimate * c), np.log1p(reference * c), out=out)
 
 
 _BLOCK = 1 << 15  # cells per block of brdf_log_rmse
