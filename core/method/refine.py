@@ -167,7 +167,9 @@ BOUND_PRESSED = 0.99
 # between them (exact textured Spot's aluminium: 1.04 read at its 60 nodes, 1.12 at
 # 120, sphere 0.62), so the judge's veto (MAX_ALBEDO) and the bound now read the
 # same cells. On the truths the two quadratures agree to 0.2 % (19 held-out
-# materials); the refits cost about 9 % more time (docs/results.md)
+# materials); the refits cost more time: a textured run about 9 % more, an untextured
+# Balanced region 1.41 -> 1.96 s (degraded bunny) and 2.24 -> 4.07 s (exact), the
+# term's product with the 69,000 cells' rows being most of it (docs/results.md)
 ALBEDO_SIGMA = 0.002
 ALBEDO_NODES = 120
 # Gauss-Newton steps of each held-out refit (held_out_rmse): what it measures, the
