@@ -167,11 +167,9 @@ BOUND_PRESSED = 0.99
 # between them (exact textured Spot's aluminium: 1.04 read at its 60 nodes, 1.12 at
 # 120, sphere 0.62), so the judge's veto (MAX_ALBEDO) and the bound now read the
 # same cells. On the truths the two quadratures agree to 0.2 % (19 held-out
-# materials); the refits cost more time: a textured run about 9 % more, an untextured
-# Balanced region 1.41 -> 1.96 s (degraded bunny) and 2.24 -> 4.07 s (exact), the
-# term's product with the 69,000 cells' rows being most of it; read once per
-# coefficient vector (albedo_read): 4.32 -> 3.24 s exact, 1.92 -> 1.72 s degraded,
-# timed alternating with the code before (docs/results.md)
+# materials); the refits take longer: the exact bunny's Balanced region 2.24 -> 4.07 s,
+# 3.24 s since the term is read once per coefficient vector (albedo_read;
+# docs/results.md, "The photo pipeline per mode")
 ALBEDO_SIGMA = 0.002
 ALBEDO_NODES = 120
 # Gauss-Newton steps of each held-out refit (held_out_rmse): what it measures, the
@@ -311,10 +309,10 @@ def photo_consistent(
     def albedo_read(c):
         """The table at the quadrature's cells, e (A,), and the directional albedo
         over ``max_albedo`` per view angle and channel, over: the same for the
-        same c, so each is computed once. A damped step reads its start point
-        three times (the Jacobian, the objective before the step, and as the step
-        accepted before it), and the term's product of the cells' rows with c
-        (69,000 x k) was most of an exact scan's refit time (docs/results.md)."""
+        same c, so each is computed once (the last four kept). A damped step reads
+        its start point three times (the Jacobian, the objective before the step,
+        and as the step accepted before it), and the product of the cells' rows
+        with c (69,000 x k) was most of an exact scan's refit time."""
         key = c.tobytes()
         if key not in read:
             e = m_eps_a * np.exp(np.clip(Qa @ c + mean_a, lo - _MARGIN, hi + _MARGIN))
