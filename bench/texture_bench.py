@@ -44,6 +44,10 @@ KL) and the default basis without the material (``common.default_basis_without``
   errors (``albedo_error`` over the measured texels, ``albedo_error_seen`` over
   every texel a lit photo observes, as issue 16 asks) and sphere error, the
   texture's own pattern error, the prior's weighing and agreement (``core.method.albedo``).
+  ``--prior truth`` gives the true texture in its place (an oracle, its own error 0):
+  what the textured path costs where the colour is known, so that the shared
+  shape's gap to the untextured capture splits into the scan texture's share and
+  the method's (``texture_truth_prior.*``).
 
 Writes ``bench/results/texture.json`` and ``texture.png`` (``--quick``:
 ``texture_quick.*``, 4 materials). About 34 minutes per seed on the 2-core machine.
@@ -147,7 +151,7 @@ def height_field_sky(z: np.ndarray, directions: int = 16, reach: int = 48) -> np
 
 
 def one(name: str, scan: str, seed: int, spot: dict | None = None,
-        registration: str = "truth") -> dict:
+        registration: str = "truth", prior_kind: str = "scan") -> dict:
     basis = common.default_basis_without(name)
     table = common.heldout_table(name)
     colour, rest, kind = truth_parts(name)
@@ -177,8 +181,9 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
     region = result.result.regions[0]
     t = result.textures[0]
     measured = t.map.measured
-    prior = scan_texture(arrays, colour, rest, tex, shape, arrays["ambient"],
-                         registration=registration if spot is not None else "truth", seed=seed)
+    prior = tex if prior_kind == "truth" else scan_texture(
+        arrays, colour, rest, tex, shape, arrays["ambient"],
+        registration=registration if spot is not None else "truth", seed=seed)
     with_prior = textured.run(basis, photos, settings, textured.TextureSettings(shape=shape),
                               prior=prior)
     tp = with_prior.textures[0]
@@ -386,6 +391,10 @@ def main(argv=None) -> int:
     parser.add_argument("--scans", default=",".join(SCANS),
                         help="the scans to run, of exact,blunted (fewer than both: "
                         "writes texture_<scan>.*)")
+    parser.add_argument("--prior", choices=("scan", "truth"), default="scan",
+                        help="the texture given as the scan's: its simulated bake (default) "
+                        "or the true texture, an oracle that measures what the textured "
+                        "path costs where the colour is known (writes texture_truth_prior.*)")
     parser.add_argument("--registration", choices=("truth", "scan"), default="truth",
                         help="Spot's texture on the truth's UV map (default; the degraded "
                         "scan's UVs misregister it) or on the scan's, as a photogrammetry "
@@ -415,7 +424,7 @@ def main(argv=None) -> int:
     spot = spot_arrays() if any(c[0] == "spot" for c in cases) else None
     for obj, name, scan, seed in cases:
         rows.append(one(name, scan, seed, spot if obj == "spot" else None,
-                        args.registration))
+                        args.registration, args.prior))
         r = rows[-1]
         w = r["with_scan_texture"]
         print(f"{obj} {name} {scan} seed {seed}: albedo {r['albedo_error']:.3f} "
@@ -428,6 +437,8 @@ def main(argv=None) -> int:
     stem = "texture_quick" if args.quick else "texture"
     if args.registration == "scan":
         stem += "_scan_registered"
+    if args.prior == "truth":
+        stem += "_truth_prior"
     if len(scans) < len(SCANS):
         stem += "_" + "_".join(scans)
     minutes = None if args.rows else (time.perf_counter() - t0) / 60
