@@ -422,13 +422,14 @@ def main(argv=None) -> int:
     cases = [] if args.rows else [(o, n, sc, sd) for o in objects for n in materials
                                   for sc in scans for sd in range(args.seeds)]
     spot = spot_arrays() if any(c[0] == "spot" for c in cases) else None
+    given = "the true texture" if args.prior == "truth" else "the scan's texture"
     for obj, name, scan, seed in cases:
         rows.append(one(name, scan, seed, spot if obj == "spot" else None,
                         args.registration, args.prior))
         r = rows[-1]
         w = r["with_scan_texture"]
         print(f"{obj} {name} {scan} seed {seed}: albedo {r['albedo_error']:.3f} "
-              f"(with the scan's texture {w['albedo_error']:.3f}, the texture itself "
+              f"(with {given} {w['albedo_error']:.3f}, the texture itself "
               f"{w['scan_texture_error']:.3f}, sphere {w['sphere']:.3f}) "
               f"(floor {r['albedo_error_floor']:.3f}) ({r['model']}, truth {r['truth']}), "
               f"sphere {r['sphere']['textured']:.3f} / {r['sphere']['untextured']:.3f} "

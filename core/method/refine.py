@@ -307,8 +307,8 @@ def photo_consistent(
     read = {}  # the last few coefficient vectors' (e, over), by their bytes
 
     def albedo_read(c):
-        """The table at the quadrature's cells, e (A,), and the directional albedo
-        over ``max_albedo`` per view angle and channel, over: the same for the
+        """The table at the quadrature's M cells, e (M,), and the directional albedo
+        over ``max_albedo`` per view angle, over (A,), for this channel's c: the same for the
         same c, so each is computed once (the last four kept). A damped step reads
         its start point three times (the Jacobian, the objective before the step,
         and as the step accepted before it), and the product of the cells' rows
