@@ -62,7 +62,11 @@ closed-form and vectorised with ``bincount``):
   the scan's texture agrees with it (degraded Spot's gold: mixed 0.479 off,
   kept 0.011), and where the scan's texture predicts the photos at least as
   well, the photos' adds their error to it (the numpy scene's blunted silver:
-  mixed 0.376 off, kept 0.070).
+  mixed 0.376 off, kept 0.070). That last comparison is made under the shared
+  shape of the moment, and where it is near a tie the shape fitted next follows
+  the texture chosen, so the region has two settled states
+  (``AlbedoSettings.prior_replaces``; ``core.method.textured.run`` settles
+  both and keeps the one that predicts the held-out photos better).
 
 **The shared shape, corrected per bin.** Given the observations' MERL cells, the
 shape is also corrected by a factor per coarse bin of directions
@@ -137,7 +141,14 @@ class AlbedoSettings:
     this relative standard error. p_level: significance of the albedo's variation
     (F test) below which the region is textured. iterations: IRLS rounds.
     shape_sigma: relative 1-sigma prior on the shared shape's correction per bin of
-    directions (used when :func:`estimate` is given the observations' cells)."""
+    directions (used when :func:`estimate` is given the observations' cells).
+    prior_replaces: the scan's texture, where the photos show one it agrees with,
+    is kept in place of theirs when it predicts each photo at least as well as
+    their own does from the other photos (False: it is only weighed with theirs).
+    Near a tie the comparison hangs on the shared shape it was made under, so
+    ``core.method.textured.run`` tries the region both ways where it decided
+    (``stats["prior_predicts"]``) and keeps the one whose photos' texture or
+    scan's predicts the held-out photos better."""
 
     noise: float = 0.01
     specular_uncertainty: float = 0.5
@@ -146,6 +157,7 @@ class AlbedoSettings:
     p_level: float = 1e-3
     iterations: int = 6
     shape_sigma: float = 1.0
+    prior_replaces: bool = True
 
     def __post_init__(self):
         for name in ("noise", "specular_uncertainty", "prior_sigma", "max_relative_error",
@@ -185,6 +197,8 @@ class AlbedoMap:
     ``misfit_where`` observations, or None); ``held_out`` (:func:`held_out_misfits`,
     or None without the observations' photos; with the scan's texture's ``prior``
     and ``textured_at_prior`` where the two textures were compared);
+    ``prior_predicts`` (whether that comparison, not agreement alone, decided for
+    the scan's texture: see ``AlbedoSettings.prior_replaces``);
     ``shape_correction`` (None when not tried, else whether it was ``kept``, the
     held-out misfits ``held_out_with`` and ``held_out_without`` it, ``bins``, and per
     channel the factors' ``range``).
@@ -433,6 +447,10 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
                                     (k * prior)[used])
         scan_predicts = held_out["prior_observations"] >= _MIN_HELD_OUT and (
             held_out["prior"] <= held_out["textured_at_prior"])
+    # the comparison decides only where the photos show a texture the scan's agrees with
+    prior_predicts = bool(scan_predicts and not constant and not agreement["rejects"]
+                          and agreement["agrees"])
+    scan_predicts = scan_predicts and settings.prior_replaces
     # the scan's texture is kept unless one colour fits the data significantly better
     # (then one colour, or the data's own texture) where the photos cannot show a
     # texture, where they show one the scan's texture neither agrees with nor
@@ -495,7 +513,8 @@ def estimate(texel, rho, diffuse, specular, shape, *, prior=None, cells=None, vi
                else log_misfit(rho[where], predicted[where]), "held_out": held_out,
                "shape_correction": correction,
                "prior_scale": None if k is None else k.tolist(),
-               "prior_weighting": weighting, "prior_agreement": agreement},
+               "prior_weighting": weighting, "prior_agreement": agreement,
+               "prior_predicts": prior_predicts},
     )
 
 

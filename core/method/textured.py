@@ -170,24 +170,34 @@ class RegionTexture:
 class TexturedResult:
     """result: the last round's :class:`pipeline.PipelineResult` (each region's
     ``table`` is the shared shape at its reference colour). textures: region id ->
-    :class:`RegionTexture`. rounds: per fit a dict per region of the texture's
-    median relative change from the previous estimate (None for the first), the
-    model and the chosen trial's KL. timings: seconds per stage (``albedo``,
-    ``initial_albedo``; the method's own are in ``result``). inputs: the photos
+    :class:`RegionTexture`. rounds: per fit of the first alternation a dict per
+    region of the texture's median relative change from the previous estimate
+    (None for the first), the model and the chosen trial's KL. timings: seconds
+    per stage (``albedo``, ``initial_albedo``, ``photos_texture_tried``; the
+    method's own are in ``result``). inputs: the photos
     of the last fit (brought to the reference colours), for a selection that
-    renders the candidates (the Cycles path). Call :meth:`retexture` after
-    changing a region's table (another winner)."""
+    renders the candidates (the Cycles path). choices: region id (str) -> where
+    the scan's texture won a near comparison and the region was settled again
+    with the photos' own (``albedo.AlbedoSettings.prior_replaces``), which was
+    ``kept`` ("scan texture" or "photos' texture"), each one's held-out misfit
+    (``scan_texture_misfit``, ``photos_texture_misfit``: ``albedo.log_misfit`` of
+    each photo predicted from the others) and the second alternation's
+    ``rounds``. Call :meth:`retexture` after changing a region's table (another
+    winner)."""
 
     result: pipeline.PipelineResult
     textures: dict
     rounds: list
     timings: dict
     inputs: list = dataclasses.field(default_factory=list, repr=False)
+    choices: dict = dataclasses.field(default_factory=dict)
     _observations: tuple | None = dataclasses.field(default=None, repr=False)
+    _settings: dict = dataclasses.field(default_factory=dict, repr=False)
 
     def retexture(self, region: pipeline.RegionResult) -> None:
         """The region's texture estimated again under its current ``table``."""
         raw, texel, shape, prior, settings = self._observations
+        settings = self._settings.get(region.region, settings)
         at = np.flatnonzero((raw.region == region.region) & (texel >= 0))
         if len(at) and region.table is not None:
             self.textures[region.region] = estimate_texture(
@@ -197,6 +207,7 @@ class TexturedResult:
         out = self.result.summary()
         out["texture"] = {str(r): t.summary() for r, t in self.textures.items()}
         out["texture_rounds"] = self.rounds
+        out["texture_choice"] = self.choices
         out["timings_s"] = dict(out["timings_s"], **self.timings)
         return out
 
@@ -485,8 +496,76 @@ def run(
                 tables.pop(r, None)
         current = normalised_inputs(inputs, uvs, textures, tables, shape)
         timings["initial_albedo"] = time.perf_counter() - t0
-        textures = {}  # the first texture only made the first fit's photos
-    result = None
+    # the first texture only made the first fit's photos
+    start = (textures, tables, current)
+    result, textures, tables, last, current, rounds = _alternate(
+        basis, inputs, uvs, raw, texel, shape, settings, texture, prior, regions, start,
+        progress, cancelled, timings)
+    choices = {}
+    contested = sorted(r for r, t in textures.items() if t.map.stats.get("prior_predicts"))
+    if contested:
+        # the scan's texture won a near comparison made under the shape of the
+        # moment, which then followed it: the region settled again with the photos'
+        # texture (weighed with the scan's), and the state whose texture predicts
+        # the held-out photos better kept (albedo.AlbedoSettings.prior_replaces)
+        t0 = time.perf_counter()
+        other = dataclasses.replace(texture, albedo=dataclasses.replace(
+            texture.albedo, prior_replaces=False))
+        alt, alt_textures, alt_tables, alt_last, _, alt_rounds = _alternate(
+            basis, inputs, uvs, raw, texel, shape, settings, other, prior, contested, start,
+            progress and (lambda f, msg: progress(f, f"the photos' own texture: {msg}")),
+            cancelled, timings)
+        timings["photos_texture_tried"] = time.perf_counter() - t0
+        by_region = {region.region: region for region in alt.regions}
+        for r in contested:
+            kept = textures[r].map.stats["held_out"]
+            tried = alt_textures.get(r)
+            tried_misfit = None if tried is None or r not in by_region else (
+                tried.map.stats.get("held_out") or {}).get("textured_at_prior")
+            photos = tried_misfit is not None and tried_misfit < kept["prior"]
+            choices[str(r)] = {"kept": "photos' texture" if photos else "scan texture",
+                               "scan_texture_misfit": kept["prior"],
+                               "photos_texture_misfit": tried_misfit,
+                               "rounds": len([x for x in alt_rounds if str(r) in x])}
+            textures[r] = _with_choice(textures[r], choices[str(r)])
+            if photos:
+                result.regions = [by_region[r] if region.region == r else region
+                                  for region in result.regions]
+                textures[r], tables[r] = _with_choice(tried, choices[str(r)]), alt_tables[r]
+                for mine, theirs in zip(last, alt_last, strict=True):
+                    mine.pop(r, None)
+                    if r in theirs:
+                        mine[r] = theirs[r]
+        if any(c["kept"] != "scan texture" for c in choices.values()):
+            current = normalised_inputs(inputs, uvs, last[0], last[1], shape)
+    return TexturedResult(result=result, textures=textures, rounds=rounds, timings=timings,
+                          inputs=current, choices=choices,
+                          _observations=(raw, texel, shape, prior, texture.albedo),
+                          _settings={int(r): other.albedo for r, c in choices.items()
+                                     if c["kept"] != "scan texture"})
+
+
+def _with_choice(t: RegionTexture, choice: dict) -> RegionTexture:
+    """The texture with its reason saying how the two settled states compared."""
+    tried = choice["photos_texture_misfit"]
+    said = ("the photos' own texture could not be tried" if tried is None else
+            f"settled with the photos' own texture (weighed with the scan's), it "
+            f"predicts each photo from the others to {tried:.3f} against the scan "
+            f"texture's {choice['scan_texture_misfit']:.3f}, each under its own shape")
+    reason = f"{t.map.reason.rstrip('.')}. Tried both ways: {said}; the {choice['kept']} kept."
+    return dataclasses.replace(t, map=dataclasses.replace(t.map, reason=reason))
+
+
+def _alternate(basis, inputs, uvs, raw, texel, shape, settings, texture, prior, regions, start,
+               progress, cancelled, timings):
+    """:func:`run`'s alternation from ``start`` (textures, tables, photos: the state
+    after the first albedo) over ``regions`` (None: all). Returns the last
+    ``pipeline.PipelineResult``, the textures and tables under it, the textures and
+    tables the last fit's photos were normalised with, those photos, and the
+    rounds' records."""
+    textures, tables, current = {}, dict(start[1]), start[2]
+    fitted_with = (dict(start[0]), dict(start[1]))
+    result, rounds = None, []
     for k in range(int(texture.rounds)):
         check(cancelled)
         lo, hi = k / texture.rounds, (k + 1) / texture.rounds
@@ -521,10 +600,9 @@ def run(
             or all(c is not None and c < texture.tolerance for c in changes.values()))
         if settled or k + 1 == texture.rounds:
             break
+        fitted_with = (dict(textures), dict(tables))
         current = normalised_inputs(inputs, uvs, textures, tables, shape)
-    return TexturedResult(result=result, textures=textures, rounds=rounds, timings=timings,
-                          inputs=current,
-                          _observations=(raw, texel, shape, prior, texture.albedo))
+    return result, textures, tables, fitted_with, current, rounds
 
 
 def _change(old: RegionTexture | None, new: RegionTexture) -> float | None:

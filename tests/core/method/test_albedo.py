@@ -285,6 +285,30 @@ def test_a_scan_texture_that_predicts_the_photos_better_than_theirs_is_kept():
     assert err < 0.25 * np.median(relative_error(data_only.albedo, tex))  # ... 0.088
 
 
+def test_a_scan_texture_that_wins_by_prediction_is_only_weighed_when_it_may_not_replace():
+    """The case above with ``prior_replaces=False``: the same comparison is made and
+    reported as the one that decided (``prior_predicts``), but the photos' texture
+    is kept, mixed with the scan's (``core.method.textured.run`` settles a region
+    this way too where the comparison decided, and keeps the state that predicts
+    the held-out photos better). Where agreement alone decides (the test after
+    next), the flag changes nothing."""
+    tex, texel, rho, d, s, views, prior = _plane_with_errors(0.4, 0.15, per="photo")
+    replaced = albedo.estimate(texel, rho, d, s, SHAPE, views=views, prior=prior)
+    weighed = albedo.estimate(texel, rho, d, s, SHAPE, views=views, prior=prior,
+                              settings=albedo.AlbedoSettings(prior_replaces=False))
+    assert replaced.stats["prior_predicts"] and weighed.stats["prior_predicts"]
+    assert replaced.stats["pattern"] == "scan texture"
+    assert weighed.stats["pattern"] == "photos and scan texture", weighed.reason
+    assert weighed.stats["held_out"] == replaced.stats["held_out"]
+    assert (weighed.coverage[weighed.measured] == albedo.MEASURED).all()
+    assert np.isfinite(weighed.albedo).all()
+    tex, texel, rho, d, s, views, prior = _plane_with_errors(0.01, 0.5)
+    for flag in (True, False):  # agreement alone decides: the scan's texture either way
+        kept = albedo.estimate(texel, rho, d, s, SHAPE, views=views, prior=prior,
+                               settings=albedo.AlbedoSettings(prior_replaces=flag))
+        assert kept.stats["pattern"] == "scan texture" and not kept.stats["prior_predicts"]
+
+
 def test_a_photos_texture_that_predicts_them_better_than_the_scans_is_mixed_with_it():
     """Exact data (1 % noise) and a scan texture 10 % off: the photos' texture
     predicts each photo from the others to their noise, the scan's texture misses
