@@ -134,7 +134,9 @@ class RegionTexture:
     every observation), ``highlight_misfit`` per model (the same over the
     ``highlight_observations`` above the diffuse model's cap, None without any;
     the one that chose the model when there are ``MIN_HIGHLIGHT`` of them and one
-    model meets them to ``HIGHLIGHT_MISFIT_MAX``)."""
+    model meets them to ``HIGHLIGHT_MISFIT_MAX``). choice: where the region was
+    settled both with the scan's texture and with the photos' own, how they
+    compared (``TexturedResult.choices``' entry), else None."""
 
     map: albedo_.AlbedoMap
     model: str
@@ -143,6 +145,7 @@ class RegionTexture:
     misfit: dict
     highlight_misfit: dict = dataclasses.field(default_factory=dict)
     highlight_observations: int = 0
+    choice: dict | None = None
 
     @property
     def cap(self) -> float:
@@ -163,7 +166,7 @@ class RegionTexture:
                 "diffuse_level": self.delta.tolist(), "texels": m.stats["texels"],
                 "prior_scale": m.stats["prior_scale"],
                 "prior_weighting": m.stats.get("prior_weighting"),
-                "prior_agreement": m.stats.get("prior_agreement")}
+                "prior_agreement": m.stats.get("prior_agreement"), "choice": self.choice}
 
 
 @dataclasses.dataclass(eq=False)
@@ -195,13 +198,16 @@ class TexturedResult:
     _settings: dict = dataclasses.field(default_factory=dict, repr=False)
 
     def retexture(self, region: pipeline.RegionResult) -> None:
-        """The region's texture estimated again under its current ``table``."""
+        """The region's texture estimated again under its current ``table`` (with the
+        settings its choice kept, and that choice)."""
         raw, texel, shape, prior, settings = self._observations
         settings = self._settings.get(region.region, settings)
         at = np.flatnonzero((raw.region == region.region) & (texel >= 0))
         if len(at) and region.table is not None:
-            self.textures[region.region] = estimate_texture(
-                region.table, raw.subset(at), texel[at], shape, settings, prior=prior)
+            old = self.textures.get(region.region)
+            self.textures[region.region] = dataclasses.replace(estimate_texture(
+                region.table, raw.subset(at), texel[at], shape, settings, prior=prior),
+                choice=None if old is None else old.choice)
 
     def summary(self) -> dict:
         out = self.result.summary()
@@ -553,7 +559,7 @@ def _with_choice(t: RegionTexture, choice: dict) -> RegionTexture:
             f"predicts each photo from the others to {tried:.3f} against the scan "
             f"texture's {choice['scan_texture_misfit']:.3f}, each under its own shape")
     reason = f"{t.map.reason.rstrip('.')}. Tried both ways: {said}; the {choice['kept']} kept."
-    return dataclasses.replace(t, map=dataclasses.replace(t.map, reason=reason))
+    return dataclasses.replace(t, map=dataclasses.replace(t.map, reason=reason), choice=choice)
 
 
 def _alternate(basis, inputs, uvs, raw, texel, shape, settings, texture, prior, regions, start,

@@ -477,6 +477,7 @@ def test_a_scan_texture_that_won_a_near_comparison_gives_way_to_the_photos_own(m
     assert choice["photos_texture_misfit"] < choice["scan_texture_misfit"], choice
     assert t.map.stats["pattern"] == "photos and scan texture", t.map.reason
     assert "Tried both ways" in t.map.reason, t.map.reason
+    assert t.summary()["choice"] == choice  # in the extension's report
     measured = t.map.measured
     truth_rel = tex / tex[measured].mean(axis=0)
     prior_rel = prior.reshape(-1, 3) / prior.reshape(-1, 3)[measured].mean(axis=0)
@@ -492,3 +493,4 @@ def test_a_scan_texture_that_won_a_near_comparison_gives_way_to_the_photos_own(m
     assert np.isfinite(result.result.regions[0].table).all()
     result.retexture(result.result.regions[0])  # under its settings: the photos' texture
     assert result.textures[0].map.stats["pattern"] == "photos and scan texture"
+    assert result.textures[0].choice == choice
