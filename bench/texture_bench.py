@@ -39,11 +39,13 @@ KL) and the default basis without the material (``common.default_basis_without``
   (``naive``);
 - the model chosen, whether the region got a constant, the fits made, seconds;
 - ``with_scan_texture``: the same textured run given the scan's own texture as
-  the prior, as the extension runs (:func:`scan_texture`, a photogrammetry bake
-  simulated with the ambient occlusion and the sky's reflection): its albedo
+  the prior, as the extension runs (``testkit.scan_texture``, a photogrammetry
+  bake simulated with the ambient occlusion and the sky's reflection): its albedo
   errors (``albedo_error`` over the measured texels, ``albedo_error_seen`` over
   every texel a lit photo observes, as issue 16 asks) and sphere error, the
-  texture's own pattern error, the prior's weighing and agreement (``core.method.albedo``).
+  texture's own pattern error, the prior's weighing and agreement (``core.method.albedo``)
+  and, where the region was settled both with it and with the photos' own texture,
+  how they compared (``choice``, ``core.method.textured.run``).
   ``--prior truth`` gives the true texture in its place (an oracle, its own error 0):
   what the textured path costs where the colour is known, so that the shared
   shape's gap to the untextured capture splits into the scan texture's share and
@@ -185,7 +187,7 @@ def one(name: str, scan: str, seed: int, spot: dict | None = None,
             "constant": bool(tp.map.constant), "model": tp.model,
             "pattern": tp.map.stats["pattern"],
             "weighting": tp.map.stats.get("prior_weighting"),
-            "agreement": tp.map.stats.get("prior_agreement")},
+            "agreement": tp.map.stats.get("prior_agreement"), "choice": tp.choice},
         "sphere": {"textured": metrics.sphere_error(region.table, at_reference),
                    "textured_against_mean_1": metrics.sphere_error(region.table, table),
                    "untextured": metrics.sphere_error(flat.table, table),
