@@ -179,7 +179,8 @@ class TexturedResult:
     per stage (``albedo``, ``initial_albedo``, ``photos_texture_tried``; the
     method's own are in ``result``). inputs: the photos
     of the last fit (brought to the reference colours), for a selection that
-    renders the candidates (the Cycles path). choices: region id (str) -> where
+    renders the candidates (the Cycles path). choices (each region's
+    ``RegionTexture.choice``): region id (str) -> where
     the scan's texture won a near comparison and the region was settled again
     with the photos' own (``albedo.AlbedoSettings.prior_replaces``), which was
     ``kept`` ("scan texture" or "photos' texture"), each one's held-out misfit
@@ -193,21 +194,25 @@ class TexturedResult:
     rounds: list
     timings: dict
     inputs: list = dataclasses.field(default_factory=list, repr=False)
-    choices: dict = dataclasses.field(default_factory=dict)
     _observations: tuple | None = dataclasses.field(default=None, repr=False)
-    _settings: dict = dataclasses.field(default_factory=dict, repr=False)
+
+    @property
+    def choices(self) -> dict:
+        return {str(r): t.choice for r, t in self.textures.items() if t.choice is not None}
 
     def retexture(self, region: pipeline.RegionResult) -> None:
         """The region's texture estimated again under its current ``table`` (with the
         settings its choice kept, and that choice)."""
         raw, texel, shape, prior, settings = self._observations
-        settings = self._settings.get(region.region, settings)
+        old = self.textures.get(region.region)
+        choice = None if old is None else old.choice
+        if choice is not None and choice["kept"] != "scan texture":
+            settings = dataclasses.replace(settings, prior_replaces=False)
         at = np.flatnonzero((raw.region == region.region) & (texel >= 0))
         if len(at) and region.table is not None:
-            old = self.textures.get(region.region)
             self.textures[region.region] = dataclasses.replace(estimate_texture(
                 region.table, raw.subset(at), texel[at], shape, settings, prior=prior),
-                choice=None if old is None else old.choice)
+                choice=choice)
 
     def summary(self) -> dict:
         out = self.result.summary()
@@ -507,7 +512,6 @@ def run(
     result, textures, tables, last, current, rounds = _alternate(
         basis, inputs, uvs, raw, texel, shape, settings, texture, prior, regions, start,
         progress, cancelled, timings)
-    choices = {}
     contested = sorted(r for r, t in textures.items() if t.map.stats.get("prior_predicts"))
     if contested:
         # the scan's texture won a near comparison made under the shape of the
@@ -523,32 +527,31 @@ def run(
             cancelled, timings)
         timings["photos_texture_tried"] = time.perf_counter() - t0
         by_region = {region.region: region for region in alt.regions}
+        photos_won = False
         for r in contested:
             kept = textures[r].map.stats["held_out"]
             tried = alt_textures.get(r)
             tried_misfit = None if tried is None or r not in by_region else (
                 tried.map.stats.get("held_out") or {}).get("textured_at_prior")
             photos = tried_misfit is not None and tried_misfit < kept["prior"]
-            choices[str(r)] = {"kept": "photos' texture" if photos else "scan texture",
-                               "scan_texture_misfit": kept["prior"],
-                               "photos_texture_misfit": tried_misfit,
-                               "rounds": len([x for x in alt_rounds if str(r) in x])}
-            textures[r] = _with_choice(textures[r], choices[str(r)])
+            choice = {"kept": "photos' texture" if photos else "scan texture",
+                      "scan_texture_misfit": kept["prior"], "photos_texture_misfit": tried_misfit,
+                      "rounds": len([x for x in alt_rounds if str(r) in x])}
+            textures[r] = _with_choice(textures[r], choice)
             if photos:
+                photos_won = True
                 result.regions = [by_region[r] if region.region == r else region
                                   for region in result.regions]
-                textures[r], tables[r] = _with_choice(tried, choices[str(r)]), alt_tables[r]
+                textures[r], tables[r] = _with_choice(tried, choice), alt_tables[r]
                 for mine, theirs in zip(last, alt_last, strict=True):
                     mine.pop(r, None)
                     if r in theirs:
                         mine[r] = theirs[r]
-        if any(c["kept"] != "scan texture" for c in choices.values()):
+        if photos_won:
             current = normalised_inputs(inputs, uvs, last[0], last[1], shape)
     return TexturedResult(result=result, textures=textures, rounds=rounds, timings=timings,
-                          inputs=current, choices=choices,
-                          _observations=(raw, texel, shape, prior, texture.albedo),
-                          _settings={int(r): other.albedo for r, c in choices.items()
-                                     if c["kept"] != "scan texture"})
+                          inputs=current,
+                          _observations=(raw, texel, shape, prior, texture.albedo))
 
 
 def _with_choice(t: RegionTexture, choice: dict) -> RegionTexture:
