@@ -536,13 +536,13 @@ def run(
             photos = tried_misfit is not None and tried_misfit < kept["prior"]
             choice = {"kept": "photos' texture" if photos else "scan texture",
                       "scan_texture_misfit": kept["prior"], "photos_texture_misfit": tried_misfit,
-                      "rounds": len([x for x in alt_rounds if str(r) in x])}
-            textures[r] = _with_choice(textures[r], choice)
+                      "rounds": sum(str(r) in x for x in alt_rounds)}
+            textures[r] = _with_choice(tried if photos else textures[r], choice)
             if photos:
                 photos_won = True
                 result.regions = [by_region[r] if region.region == r else region
                                   for region in result.regions]
-                textures[r], tables[r] = _with_choice(tried, choice), alt_tables[r]
+                tables[r] = alt_tables[r]
                 for mine, theirs in zip(last, alt_last, strict=True):
                     mine.pop(r, None)
                     if r in theirs:
