@@ -35,6 +35,18 @@ reads), so it bounds an alternation from above. ``alternated_16``: the honest
 round, the field fitted with Balanced's own table from the uncorrected scan,
 then Balanced on the corrected scan.
 
+``--field height`` (writes ``normal_correction_height.json`` / ``.png``): an
+integrable correction instead, the surface gradient of a height field ``h(x)``
+trilinear over the same kind of grid (``n`` becomes ``normalise(n - (I - n n^T)
+grad h)``: one degree of freedom per node, and the corrected normals the
+gradient field of a displaced surface, so one light's shading constrains it, as
+in shape from shading). Its smoothness is a second-difference term on ``h``
+(weight ``HEIGHT_SMOOTHNESS``) at G = 32 (``HEIGHT_GRID``); the same Gauss-Newton
+fit. For every material: ``oracle_h32`` (fitted to the true normals),
+``photo_fit_h32`` (to the photos with the true BRDF: the bound), ``alternated_h32``
+and ``alternated2_h32`` (one and two honest rounds: Balanced's own table from the
+scan, then the table of Balanced on the scan corrected with it).
+
 Scene and scoring are ``bench/photo_bench.py``'s: the blunted bunny and Spot
 (``bench/capture_arrays.py``), 3 lit photos with 1 % noise, the 12 analytic and 7
 measured held-out materials, each reconstructed with a basis without it, the
@@ -64,6 +76,11 @@ DAMPING = 1e-3
 PHOTO_FIT = ("heldout_lambert_grey", "purple-paint", "two-layer-gold", "heldout_gold_medium")
 PHOTO_FIT_ITERATIONS = 4
 PHOTO_FIT_SMOOTHNESS = 1.0
+# --field height: the grid and the second-difference weight (chosen on the true-BRDF fits
+# of three materials, G 16 / 32 / 64 and weights 0.1 to 1000, both objects)
+HEIGHT_GRID = 32
+HEIGHT_SMOOTHNESS = 100.0
+HEIGHT_ITERATIONS = 8
 
 
 def rotation_field(x, n, G: int, lo, hi) -> sp.csr_matrix:
@@ -94,6 +111,49 @@ def rotation_field(x, n, G: int, lo, hi) -> sp.csr_matrix:
                          shape=(3 * N, 3 * G ** 3))
 
 
+def height_field(x, n, G: int, lo, hi) -> sp.csr_matrix:
+    """The (3N, G^3) matrix taking the grid's node heights (scene units) to the normals'
+    change ``-(I - n n^T) grad h(x)`` (the surface gradient of the trilinear ``h``).
+
+    x: (N, 3) positions (scene units); n: (N, 3) unit normals; lo, hi: (3,) the grid's
+    corners. Positions outside the box take its nearest face.
+    """
+    size = np.asarray(hi, np.float64) - lo
+    u = np.clip((x - lo) / size, 0.0, 1.0) * (G - 1)
+    i0 = np.minimum(np.floor(u).astype(np.int64), G - 2)
+    f = u - i0
+    N = len(n)
+    corners = np.array([(a, b, c) for a in (0, 1) for b in (0, 1) for c in (0, 1)])
+    weight = np.where(corners[None], f[:, None], 1.0 - f[:, None])  # (N, 8, 3) per axis
+    sign = np.where(corners, 1.0, -1.0)  # (8, 3): d weight / d f
+    grad = np.stack([weight[:, :, (k + 1) % 3] * weight[:, :, (k + 2) % 3] * sign[None, :, k]
+                     * (G - 1) / size[k] for k in range(3)], axis=-1)  # (N, 8, 3)
+    tangential = np.eye(3)[None] - n[:, :, None] * n[:, None, :]  # (N, 3, 3)
+    vals = -np.einsum("nij,ncj->nci", tangential, grad)  # (N, 8, 3)
+    node = (((i0[:, None, 0] + corners[:, 0]) * G + i0[:, None, 1] + corners[:, 1]) * G
+            + i0[:, None, 2] + corners[:, 2])  # (N, 8)
+    rows = np.broadcast_to((3 * np.arange(N))[:, None, None] + np.arange(3), (N, 8, 3))
+    cols = np.broadcast_to(node[:, :, None], (N, 8, 3))
+    return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * N, G ** 3))
+
+
+def second_differences(G: int) -> sp.csr_matrix:
+    """The second differences of a scalar G^3 grid: along x, y and z, and the mixed ones
+    (sqrt(2) x the first differences along two axes), stacked (rows, G^3)."""
+    d1 = sp.diags([np.ones(G - 1), -np.ones(G - 1)], [0, 1], shape=(G - 1, G))
+    d2 = sp.diags([np.ones(G - 2), -2.0 * np.ones(G - 2), np.ones(G - 2)], [0, 1, 2],
+                  shape=(G - 2, G))
+    eye = sp.identity(G)
+
+    def along(ops):
+        return sp.kron(sp.kron(ops[0], ops[1]), ops[2])
+
+    blocks = [along([d2 if k == axis else eye for k in range(3)]) for axis in range(3)]
+    blocks += [np.sqrt(2.0) * along([d1 if k in pair else eye for k in range(3)])
+               for pair in ((0, 1), (0, 2), (1, 2))]
+    return sp.vstack(blocks).tocsr()
+
+
 def scan_grid(arrays: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The scan's pixels a correction applies to, (V, H, W) bool (region >= 0, finite
     normal), and the grid's corners lo, hi (3,): their positions' box, 1e-6 wider."""
@@ -103,14 +163,15 @@ def scan_grid(arrays: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return seen, x.min(axis=0) - 1e-6, x.max(axis=0) + 1e-6
 
 
-def with_field(arrays: dict, omega, G: int) -> dict:
-    """The capture with every scan normal of :func:`scan_grid`'s pixels turned by the
-    grid-G rotation field ``omega`` (3 G^3,) and normalised; the rest as it was."""
+def with_field(arrays: dict, omega, G: int, field=rotation_field) -> dict:
+    """The capture with every scan normal of :func:`scan_grid`'s pixels moved by the
+    grid-G field ``omega`` (3 G^3, node rotations, for :func:`rotation_field`; G^3 node
+    heights for :func:`height_field`) and normalised; the rest as it was."""
     seen, lo, hi = scan_grid(arrays)
     sn = arrays["scan_normal"]
     n = sn[seen].astype(np.float64)
     x = arrays["scan_position"][seen].astype(np.float64)
-    fixed = n + (rotation_field(x, n, G, lo, hi) @ omega).reshape(-1, 3)
+    fixed = n + (field(x, n, G, lo, hi) @ omega).reshape(-1, 3)
     fixed /= np.linalg.norm(fixed, axis=-1, keepdims=True)
     out = dict(arrays)
     out["scan_normal"] = sn.copy()
@@ -118,16 +179,17 @@ def with_field(arrays: dict, omega, G: int) -> dict:
     return out
 
 
-def oracle_corrected(arrays: dict, G: int) -> dict:
-    """The capture with its scan normals corrected by the grid-G rotation field fitted to
-    the true normals (the bound of any correction that smooth)."""
+def oracle_corrected(arrays: dict, G: int, field=rotation_field) -> dict:
+    """The capture with its scan normals corrected by the grid-G field (rotations, or
+    :func:`height_field`) fitted to the true normals (the bound of any correction that
+    smooth)."""
     seen, lo, hi = scan_grid(arrays)
     both = seen & arrays["truth_mask"] & np.all(np.isfinite(arrays["truth_normal"]), axis=-1)
     n = arrays["scan_normal"][both].astype(np.float64)
     t = arrays["truth_normal"][both].astype(np.float64)
-    A = rotation_field(arrays["scan_position"][both].astype(np.float64), n, G, lo, hi)
+    A = field(arrays["scan_position"][both].astype(np.float64), n, G, lo, hi)
     omega = spl.lsqr(A, (t - n).ravel(), damp=DAMPING, iter_lim=500)[0]
-    return with_field(arrays, omega, G)
+    return with_field(arrays, omega, G, field)
 
 
 def grid_laplacian(G: int) -> sp.csr_matrix:
@@ -148,10 +210,11 @@ def grid_laplacian(G: int) -> sp.csr_matrix:
     return sp.csr_matrix((vals, (rows, cols)), shape=(3 * m, 3 * G ** 3))
 
 
-def photo_fitted(arrays: dict, inputs, table, G: int = 16) -> dict:
-    """The capture with its scan normals corrected by the grid-G rotation field fitted
-    to the photos (``inputs``, ``pipeline.PhotoInput``) with ``table`` (3, 90, 90, 180)
-    as the BRDF (see the module docstring)."""
+def photo_fitted(arrays: dict, inputs, table, G: int = 16, field=rotation_field) -> dict:
+    """The capture with its scan normals corrected by the grid-G field (rotations with a
+    first-difference smoothness, or :func:`height_field` with :func:`second_differences`)
+    fitted to the photos (``inputs``, ``pipeline.PhotoInput``) with ``table``
+    (3, 90, 90, 180) as the BRDF (see the module docstring)."""
     from brdf_reconstruct.core.brdf import render
 
     light = np.asarray(arrays["light"], dtype=np.float64)
@@ -173,13 +236,15 @@ def photo_fitted(arrays: dict, inputs, table, G: int = 16) -> dict:
         return np.log(render.shade(table, n, light, v, interpolation="trilinear").sum(axis=1)
                       + eps)
 
-    A = rotation_field(x, n0, G, lo, hi)
+    A = field(x, n0, G, lo, hi)
     per_pixel = sp.csr_matrix((np.ones(3 * len(n0)), (np.repeat(np.arange(len(n0)), 3),
                                                        np.arange(3 * len(n0)))))
-    lap = np.sqrt(PHOTO_FIT_SMOOTHNESS) * grid_laplacian(G)
-    omega = np.zeros(3 * G ** 3)
+    height = field is height_field
+    lap = (np.sqrt(HEIGHT_SMOOTHNESS) * second_differences(G) if height
+           else np.sqrt(PHOTO_FIT_SMOOTHNESS) * grid_laplacian(G))
+    omega = np.zeros(A.shape[1])
     delta = np.radians(1.0)
-    for _ in range(PHOTO_FIT_ITERATIONS):
+    for _ in range(HEIGHT_ITERATIONS if height else PHOTO_FIT_ITERATIONS):
         n = n0 + (A @ omega).reshape(-1, 3)
         n /= np.linalg.norm(n, axis=-1, keepdims=True)
         f0 = log_radiance(n)
@@ -194,7 +259,7 @@ def photo_fitted(arrays: dict, inputs, table, G: int = 16) -> dict:
         step = spl.lsqr(sp.vstack([J, lap]), np.concatenate([w * r, -(lap @ omega)]),
                         damp=0.3, iter_lim=300)[0]
         omega = omega + step
-    return with_field(arrays, omega, G)
+    return with_field(arrays, omega, G, field)
 
 
 def normal_error(arrays: dict) -> dict:
@@ -208,9 +273,21 @@ def normal_error(arrays: dict) -> dict:
 
 
 def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    height = False
+    if "--field" in argv:  # the one option of this bench's own
+        i = argv.index("--field")
+        value = argv[i + 1] if i + 1 < len(argv) else ""
+        if value not in ("rotation", "height"):
+            print("error: --field must be rotation or height", file=sys.stderr)
+            return 2
+        height = value == "height"
+        del argv[i:i + 2]
     args, objects = common.pipeline_bench_arguments(__doc__, argv, 1, "5 materials")
     if args is None:
         return objects
+    if height:
+        return main_height(args, objects)
     info = common.machine("the bound of a smooth normal correction, issue 15")
     t_start = time.perf_counter()
     names = common.pipeline_materials(args.quick)
@@ -260,6 +337,86 @@ def main(argv=None) -> int:
     print(json.dumps(doc["summary"], indent=1))
     print(f"-> {path}")
     return 0
+
+
+def main_height(args, objects) -> int:
+    """``--field height``: the integrable correction's oracle, its bound with the true
+    BRDF, and one and two honest rounds, for every material (the module docstring)."""
+    info = common.machine("an integrable (height-field) normal correction, issue 15")
+    t_start = time.perf_counter()
+    names = common.pipeline_materials(args.quick)
+    G = HEIGHT_GRID
+    rows, scans_info = [], {}
+    for obj in objects:
+        degraded = capture_arrays.gbuffers(mesh=None if obj == "bunny"
+                                           else measured.DATA / "spot.obj")
+        oracle = oracle_corrected(degraded, G, height_field)
+        scans_info[obj] = {"scan": normal_error(degraded), f"oracle_h{G}": normal_error(oracle)}
+        print(obj, json.dumps(scans_info[obj]), flush=True)
+        for name in names:
+            truth = common.heldout_table(name)
+            B = common.default_basis_without(name)
+            for seed in range(args.seeds):
+                here, fitted = _height_runs(obj, name, seed, B, truth, degraded, oracle, G)
+                for key, arrays in fitted.items():
+                    scans_info[obj].setdefault(key, {})[f"{name}/{seed}"] = normal_error(arrays)
+                rows.extend(here)
+                print(f"{obj} {name} seed {seed}: " + ", ".join(
+                    f"{r['scan']} {r['sphere']:.3f}" for r in here), flush=True)
+    doc = {"machine": common.machine_end(info), "materials": names,
+           "seeds": list(range(args.seeds)), "grid": G, "smoothness": HEIGHT_SMOOTHNESS,
+           "iterations": HEIGHT_ITERATIONS, "field": "height",
+           "settings": "Balanced (PipelineSettings() defaults), 3 photos, 1 % noise",
+           "minutes": (time.perf_counter() - t_start) / 60.0,
+           "normals": scans_info, "summary": summary(rows, objects), "runs": rows}
+    path = common.RESULTS / ("normal_correction_height_quick.json" if args.quick
+                             else "normal_correction_height.json")
+    common.write_json(path, doc, arguments=dict(vars(args), field="height"))
+    plot(doc, path.with_suffix(".png"))
+    print(json.dumps(doc["summary"], indent=1))
+    print(f"-> {path}")
+    return 0
+
+
+def _height_runs(obj, name, seed, B, truth, degraded, oracle, G):
+    """One material and seed of ``--field height``: (the rows of Balanced on the scan, the
+    oracle, the true-BRDF fit and the two rounds, the photo-fitted captures by name)."""
+    photos = capture_arrays.photo_inputs(degraded, truth, noise=0.01, seed=seed)
+    rows = []
+
+    def balanced(scan, arrays):
+        inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
+        row, table = _balanced_row(obj, name, seed, scan, B, arrays, inputs, truth)
+        rows.append(row)
+        return table
+
+    own = balanced("scan", degraded)
+    balanced(f"oracle_h{G}", oracle)
+    t0 = time.perf_counter()
+    fitted = {f"alternated_h{G}": photo_fitted(degraded, photos, own, G, height_field)}
+    fit_s = time.perf_counter() - t0
+    fitted[f"photo_fit_h{G}"] = photo_fitted(degraded, photos, truth, G, height_field)
+    balanced(f"photo_fit_h{G}", fitted[f"photo_fit_h{G}"])
+    second = balanced(f"alternated_h{G}", fitted[f"alternated_h{G}"])
+    fitted[f"alternated2_h{G}"] = photo_fitted(degraded, photos, second, G, height_field)
+    balanced(f"alternated2_h{G}", fitted[f"alternated2_h{G}"])
+    for row in rows:
+        row["fit_s"] = fit_s  # one photo fit's seconds (the first round's)
+    return rows, fitted
+
+
+def _balanced_row(obj, name, seed, scan, B, arrays, inputs, truth):
+    """One Balanced run on ``arrays``' scan: (its row of scores, its table)."""
+    t0 = time.perf_counter()
+    region = pipeline.run(B, inputs, pipeline.PipelineSettings(seed=seed),
+                          regions=[0]).regions[0]
+    seconds = time.perf_counter() - t0
+    scores = photo_bench._scores(region.table, truth, arrays, inputs, region.reliable_pixels)
+    row = {"object": obj, "material": name, "measured": common.is_measured(name),
+           "seed": seed, "scan": scan, "sphere": scores["sphere"],
+           "self_consistency": scores["self_consistency"], "energy": scores["energy"],
+           "seconds": seconds}
+    return row, region.table
 
 
 def summary(rows, objects) -> dict:
