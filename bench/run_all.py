@@ -17,9 +17,11 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-# each in its own process: they set their own thread pinning and Blender scenes
+# each in its own process: they set their own thread pinning and Blender scenes; an entry
+# is a script and the arguments of its own it always gets
 SCRIPTS = ("core_bench.py", "basis_build_bench.py", "measured_bench.py", "fig4_bench.py",
            "sampler_bench.py", "photo_bench.py", "normal_correction_bench.py",
+           "normal_correction_bench.py --field height",
            "trial_combination_bench.py", "refit_bench.py", "irradiance_bench.py",
            "optics_bench.py", "footprint_bench.py", "photo_check_bench.py",
            "photo_count_bench.py", "refit_draw_bench.py", "clipping_bench.py",
@@ -50,9 +52,10 @@ def main(argv=None) -> int:
             extra = [] if script in NO_QUICK else ["--quick"]
         else:
             extra = FULL.get(script, [])
-        args = ALWAYS.get(script, []) + extra
-        print(f"== {script} {' '.join(args)}", flush=True)
-        if subprocess.run([sys.executable, str(HERE / script), *args]).returncode != 0:
+        name, *own = script.split()
+        args = own + ALWAYS.get(script, []) + extra
+        print(f"== {name} {' '.join(args)}", flush=True)
+        if subprocess.run([sys.executable, str(HERE / name), *args]).returncode != 0:
             failed.append(script)
     if failed:
         print(f"error: failed: {', '.join(failed)}", file=sys.stderr)
