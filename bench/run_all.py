@@ -1,7 +1,8 @@
 """``make bench``: every benchmark in turn; results land in ``bench/results/``.
 
-About 4 hours on the 2-core machine: reliable_bench (~45 min), tradeoff
-(~1 h), heldout with the Mitsuba peer (~20 min), scaling, extremes, SfM, core,
+About 4 hours on the 2-core machine, and the integrable normal correction
+(``normal_correction_bench.py --field height``) ~26 min more: reliable_bench
+(~45 min), tradeoff (~1 h), heldout with the Mitsuba peer (~20 min), scaling, extremes, SfM, core,
 the basis build (~3 min), the bases against measured materials (~25 min), the
 Cycles KL samples, the sphere probe (~2 min), the bad-input sweep (~4 to 8 min)
 and camera-style inputs (~13 min). ``--quick`` runs the reduced version of each that has one.
