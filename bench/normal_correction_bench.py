@@ -384,13 +384,14 @@ def _height_runs(obj, name, seed, B, truth, degraded, oracle, G):
     photos = capture_arrays.photo_inputs(degraded, truth, noise=0.01, seed=seed)
     rows = []
 
-    def balanced(scan, arrays):
-        inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
+    def balanced(scan, arrays, inputs=None):
+        if inputs is None:  # the same photos (seed) with this scan's G-buffers
+            inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
         row, table = _balanced_row(obj, name, seed, scan, B, arrays, inputs, truth)
         rows.append(row)
         return table
 
-    own = balanced("scan", degraded)
+    own = balanced("scan", degraded, photos)
     balanced(f"oracle_h{G}", oracle)
     t0 = time.perf_counter()
     fitted = {f"alternated_h{G}": photo_fitted(degraded, photos, own, G, height_field)}
