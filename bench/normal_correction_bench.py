@@ -318,11 +318,8 @@ def main(argv=None) -> int:
                             normal_error(these[key])
                 for scan, arrays in these.items():
                     inputs = capture_arrays.photo_inputs(arrays, truth, noise=0.01, seed=seed)
-                    row = photo_bench._run(obj, name, seed, scan, "balanced", B, arrays,
-                                           inputs, truth)[0]
-                    rows.append({k: row[k] for k in ("object", "material", "measured", "seed",
-                                                     "scan", "sphere", "self_consistency",
-                                                     "energy")})
+                    rows.append(_balanced_row(obj, name, seed, scan, B, arrays, inputs,
+                                              truth)[0])
                 print(f"{obj} {name} seed {seed}: " + ", ".join(
                     f"{r['scan']} {r['sphere']:.3f}" for r in rows[-len(these):]), flush=True)
     doc = {"machine": common.machine_end(info), "materials": names,
